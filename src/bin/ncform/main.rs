@@ -1,0 +1,131 @@
+//! The `ncform` command line.
+
+use std::io::{self, BufReader};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use ncform::cli::{material_curves, material_eval};
+use ncform::material::MaterialSpec;
+use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
+
+/// Forming simulation of dry UD non-crimp fabrics (Schäfer et al. 2024 law).
+/// Units: mm, N, MPa, tonne/mm³, s.
+#[derive(Parser)]
+#[command(name = "ncform", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The membrane law at material points: evaluation, curves, parameter sets.
+    Material {
+        #[command(subcommand)]
+        command: MaterialCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum MaterialCommand {
+    /// Read JSON lines {"C": [[c11,c12],[c12,c22]], "fiber_angle_deg": θ} on
+    /// stdin; write W, S, the tangent and the invariants as JSON lines.
+    Eval {
+        /// A named parameter set or a TOML file.
+        #[arg(long, default_value = DEFAULT_SET, value_name = "NAME|FILE")]
+        params: String,
+    },
+    /// Write the stress functions, the coupling k11 and the energy
+    /// contributions as CSV and PNG.
+    Curves {
+        /// A named parameter set or a TOML file.
+        #[arg(long, default_value = DEFAULT_SET, value_name = "NAME|FILE")]
+        params: String,
+        /// Output folder (created if missing).
+        #[arg(long, default_value = "out/material-curves")]
+        out: PathBuf,
+    },
+    /// Print a named parameter set as TOML, to start a file of your own;
+    /// without a name, list the named sets.
+    Params {
+        /// The set's name.
+        name: Option<String>,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(code) => code,
+        Err(message) => {
+            eprintln!("error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode, String> {
+    match cli.command {
+        Command::Material { command } => match command {
+            MaterialCommand::Eval { params } => {
+                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let stdin = io::stdin();
+                let summary = material_eval::run(
+                    &spec.material,
+                    BufReader::new(stdin.lock()),
+                    io::BufWriter::new(io::stdout().lock()),
+                    io::stderr().lock(),
+                    "stdin",
+                )
+                .map_err(|e| format!("I/O error: {e}"))?;
+                if summary.failed > 0 {
+                    eprintln!(
+                        "material eval: {} line(s) answered, {} line(s) with errors",
+                        summary.answered, summary.failed
+                    );
+                    return Ok(ExitCode::FAILURE);
+                }
+                Ok(ExitCode::SUCCESS)
+            }
+            MaterialCommand::Curves { params, out } => {
+                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let written =
+                    material_curves::write_curves(&spec, &out).map_err(|e| e.to_string())?;
+                for path in written {
+                    println!("{}", path.display());
+                }
+                Ok(ExitCode::SUCCESS)
+            }
+            MaterialCommand::Params { name } => match name {
+                None => {
+                    for (name, _) in NAMED_SETS {
+                        let spec = MaterialSpec::named(name).expect("named set");
+                        let default = if *name == DEFAULT_SET {
+                            " (default)"
+                        } else {
+                            ""
+                        };
+                        println!("{name}{default}: {}", spec.description);
+                    }
+                    Ok(ExitCode::SUCCESS)
+                }
+                Some(name) => {
+                    let text = MaterialSpec::named_text(&name).ok_or_else(|| {
+                        format!(
+                            "no named parameter set '{name}'; the sets are: {}",
+                            NAMED_SETS
+                                .iter()
+                                .map(|(n, _)| *n)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )
+                    })?;
+                    print!("{text}");
+                    Ok(ExitCode::SUCCESS)
+                }
+            },
+        },
+    }
+}

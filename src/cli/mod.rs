@@ -1,0 +1,5 @@
+//! Command implementations behind the `ncform` binary, written over
+//! readers and writers so tests drive them without a process.
+
+pub mod material_curves;
+pub mod material_eval;

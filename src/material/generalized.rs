@@ -1,0 +1,168 @@
+//! The generalized stress function of the law, paper Eq. (12), its derivative
+//! and its exactly integrated energy (Appendix B, corrected: see
+//! `docs/theory.md`).
+//!
+//! With `x_t = S_ini / C_ini`, `c = C_ini / ΔS_mid` and `y = x − x_t`:
+//!
+//! ```text
+//! f(x) = C_ini x                                       x < x_t
+//! f(x) = S_ini + (C_mid y + ΔS_mid)(1 − e^(−c y))      x ≥ x_t
+//! f(x) += C_lock (x − I_lock)²                         x ≥ I_lock
+//! ```
+//!
+//! `G(x) = ∫₀ˣ f` is the energy of one term; `f′` enters the consistent
+//! tangent.
+
+/// The middle branch of Eq. (12): the transition from the initial modulus
+/// `C_ini` to the middle modulus `C_mid` over the stress range `ΔS_mid`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    /// Initial stress limit `S_ini` [MPa].
+    pub s_ini: f64,
+    /// Middle modulus `C_mid` [MPa].
+    pub c_mid: f64,
+    /// Stress range `ΔS_mid` of the transition [MPa].
+    pub delta_s_mid: f64,
+}
+
+/// The lock branch of Eq. (12): `f += C_lock (x − I_lock)²` for `x ≥ I_lock`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lock {
+    /// Lock modulus `C_lock` [MPa].
+    pub c_lock: f64,
+    /// Lock onset `I_lock` (same measure as `x`, dimensionless).
+    pub i_lock: f64,
+}
+
+/// One term's generalized stress function `f(x)`, `x ≥ 0` (Eq. 12).
+///
+/// Construct with [`GeneralizedTerm::new`], which derives `x_t` and `c`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeneralizedTerm {
+    /// Initial modulus `C_ini` [MPa].
+    pub c_ini: f64,
+    /// Optional transition (middle) branch.
+    pub transition: Option<Transition>,
+    /// Optional lock branch.
+    pub lock: Option<Lock>,
+    /// Transition point `x_t = S_ini / C_ini` (infinite without a transition).
+    x_t: f64,
+    /// Exponent coefficient `c = C_ini / ΔS_mid` (zero without a transition).
+    rate: f64,
+}
+
+/// Value, slope and energy of a generalized term at one point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TermValue {
+    /// Energy `G(x)` [MPa].
+    pub energy: f64,
+    /// Stress function `f(x) = G′(x)` [MPa].
+    pub stress: f64,
+    /// Modulus `f′(x)` [MPa].
+    pub modulus: f64,
+}
+
+impl GeneralizedTerm {
+    /// Builds the term and derives `x_t = S_ini / C_ini` and
+    /// `c = C_ini / ΔS_mid`, the two choices that make `f` C¹ at `x_t`.
+    /// Parameter ranges are checked by [`crate::material::params`], not here.
+    pub fn new(c_ini: f64, transition: Option<Transition>, lock: Option<Lock>) -> Self {
+        let (x_t, rate) = match transition {
+            Some(t) => (t.s_ini / c_ini, c_ini / t.delta_s_mid),
+            None => (f64::INFINITY, 0.0),
+        };
+        Self {
+            c_ini,
+            transition,
+            lock,
+            x_t,
+            rate,
+        }
+    }
+
+    /// A linear term `f = C_ini x` (no transition, no lock).
+    pub fn linear(c_ini: f64) -> Self {
+        Self::new(c_ini, None, None)
+    }
+
+    /// The transition point `x_t = S_ini / C_ini` (infinite without a transition).
+    pub fn transition_point(&self) -> f64 {
+        self.x_t
+    }
+
+    /// `f(x)`, `f′(x)` and `G(x)` at `x ≥ 0` (Eq. 12 and its integral).
+    #[inline]
+    pub fn eval(&self, x: f64) -> TermValue {
+        let mut value = if x < self.x_t {
+            TermValue {
+                energy: 0.5 * self.c_ini * x * x,
+                stress: self.c_ini * x,
+                modulus: self.c_ini,
+            }
+        } else {
+            // x ≥ x_t implies a transition exists (x_t is infinite otherwise).
+            let t = self
+                .transition
+                .expect("x_t is finite only with a transition");
+            let c = self.rate;
+            let y = x - self.x_t;
+            let z = c * y;
+            let decay = (-z).exp();
+            let one_minus_decay = -(-z).exp_m1();
+            let amplitude = t.c_mid * y + t.delta_s_mid;
+            TermValue {
+                energy: 0.5 * self.c_ini * self.x_t * self.x_t
+                    + (t.s_ini + t.delta_s_mid) * y
+                    + 0.5 * t.c_mid * y * y
+                    - t.delta_s_mid * one_minus_decay / c
+                    - t.c_mid * one_minus_decay_times_one_plus(z) / (c * c),
+                stress: t.s_ini + amplitude * one_minus_decay,
+                modulus: t.c_mid * one_minus_decay + amplitude * c * decay,
+            }
+        };
+        if let Some(lock) = self.lock
+            && x >= lock.i_lock
+        {
+            let d = x - lock.i_lock;
+            value.energy += lock.c_lock * d * d * d / 3.0;
+            value.stress += lock.c_lock * d * d;
+            value.modulus += 2.0 * lock.c_lock * d;
+        }
+        value
+    }
+}
+
+/// `1 − e^(−z)(1 + z)` for `z ≥ 0` without cancellation at small `z`:
+/// the series `Σ_{n≥2} (−1)ⁿ (n−1) zⁿ / n!` below 0.1, the closed form above.
+#[inline]
+fn one_minus_decay_times_one_plus(z: f64) -> f64 {
+    if z < 0.1 {
+        // Terms n = 2..=9; the first omitted term is below 1e-10 · z²/2.
+        let mut term = z * z / 2.0; // zⁿ/n! for n = 2
+        let mut sum = term;
+        let mut sign = -1.0;
+        for n in 3..=9 {
+            term *= z / n as f64;
+            sum += sign * (n - 1) as f64 * term;
+            sign = -sign;
+        }
+        sum
+    } else {
+        -(-z).exp_m1() - z * (-z).exp()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn series_matches_closed_form_where_both_are_accurate() {
+        for &z in &[0.02_f64, 0.05, 0.0999] {
+            let closed = 1.0 - (-z).exp() * (1.0 + z);
+            let series = one_minus_decay_times_one_plus(z);
+            // The closed form loses about eps/z² relative accuracy here.
+            assert!((closed - series).abs() <= 1e-12 * series.abs().max(1e-300) / (z * z));
+        }
+    }
+}

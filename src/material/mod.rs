@@ -1,0 +1,83 @@
+//! Membrane material laws: pseudo-invariants, the generalized energy, the
+//! UD-NCF law of Schäfer et al. (2024) with its consistent tangent, an
+//! orthotropic St Venant–Kirchhoff law, and parameter files.
+//!
+//! The laws know nothing of meshes or elements: they map `C` (2×2, in an
+//! orthonormal reference frame) and a [`FibreFrame`] to `W`, `S` and `ℂ`.
+
+pub mod coupling;
+pub mod frame;
+pub mod generalized;
+pub mod invariants;
+pub mod law;
+pub mod params;
+pub mod svk;
+pub mod udncf;
+
+pub use coupling::Coupling;
+pub use frame::{FibreFrame, Sym2};
+pub use generalized::{GeneralizedTerm, Lock, Transition};
+pub use invariants::Invariants;
+pub use law::{MembraneMaterial, StressState, Tangent};
+pub use params::{MaterialSpec, ParamsError};
+pub use svk::OrthotropicSvk;
+pub use udncf::UdNcf;
+
+/// A state at which a law cannot be evaluated. Never replaced by NaN.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum MaterialError {
+    /// `C` has a NaN or infinite component.
+    #[error("the right Cauchy-Green tensor C has a non-finite component")]
+    NonFinite,
+    /// `I4 = a0·C a0 ≤ 0`: the rovings have collapsed to zero length.
+    #[error("collapsed rovings: I4 = a0·C·a0 = {i4:e} is not positive")]
+    CollapsedRovings {
+        /// The offending `I4`.
+        i4: f64,
+    },
+    /// `det C ≤ 0`: an inverted or collapsed element.
+    #[error("inverted or collapsed element: det C = {det:e} is not positive")]
+    NonPositiveDeterminant {
+        /// The offending `det C`.
+        det: f64,
+    },
+    /// The state is admissible but the law overflowed (e.g. an extreme lock).
+    #[error("the law's energy or stress overflowed at this state")]
+    NonFiniteResponse,
+}
+
+/// A material law chosen at run time: static dispatch over the laws ncform
+/// ships, so element loops stay monomorphic.
+// One `Material` exists per run and is shared by reference, so the size
+// difference between variants costs nothing; boxing would add an indirection
+// to every evaluation.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Material {
+    /// The UD-NCF law (Schäfer et al. 2024).
+    UdNcf(UdNcf),
+    /// The orthotropic St Venant–Kirchhoff cross-check law.
+    OrthotropicSvk(OrthotropicSvk),
+}
+
+impl MembraneMaterial for Material {
+    #[inline]
+    fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError> {
+        match self {
+            Material::UdNcf(law) => law.stress(c, frame),
+            Material::OrthotropicSvk(law) => law.stress(c, frame),
+        }
+    }
+
+    #[inline]
+    fn stress_tangent(
+        &self,
+        c: &Sym2,
+        frame: &FibreFrame,
+    ) -> Result<(StressState, Tangent), MaterialError> {
+        match self {
+            Material::UdNcf(law) => law.stress_tangent(c, frame),
+            Material::OrthotropicSvk(law) => law.stress_tangent(c, frame),
+        }
+    }
+}

@@ -1,0 +1,425 @@
+//! Material parameter sets: the named sets shipped with ncform and user
+//! files in TOML, validated key by key.
+//!
+//! File format (see `cases/materials/schaefer2024.toml` and
+//! `docs/parameters.md`): `law = "ud-ncf"` with tables `[w4]`, `[w6]`, `[w8]`,
+//! `[w11]` (keys `c_ini`, optional `s_ini` + `c_mid` + `delta_s_mid`,
+//! optional `c_lock` + `i_lock`) and `[coupling]` (`k_min`, `s11`, `e11`); or
+//! `law = "orthotropic-svk"` with a table `[svk]` (`e1`, `e2`, `nu12`, `g12`).
+//! Units: MPa.
+
+use std::fmt;
+use std::path::Path;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::Material;
+use super::coupling::Coupling;
+use super::generalized::{GeneralizedTerm, Lock, Transition};
+use super::svk::OrthotropicSvk;
+use super::udncf::UdNcf;
+
+/// The named parameter sets: `(name, TOML text)`. The first is the default.
+pub const NAMED_SETS: &[(&str, &str)] = &[
+    (
+        "schaefer2024",
+        include_str!("../../cases/materials/schaefer2024.toml"),
+    ),
+    (
+        "schaefer2024-printed",
+        include_str!("../../cases/materials/schaefer2024-printed.toml"),
+    ),
+];
+
+/// The default parameter set: Table D.1 with the reconstructed W11 lock.
+pub const DEFAULT_SET: &str = "schaefer2024";
+
+/// A validated parameter set: a ready-to-evaluate law and where it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MaterialSpec {
+    /// Name given in the file (or the file name).
+    pub name: String,
+    /// Free-text description from the file.
+    pub description: String,
+    /// Where the set was read from: a set name or a file path.
+    pub source: String,
+    /// The law with its parameters.
+    pub material: Material,
+}
+
+/// Why a parameter set could not be used. Every variant names its source.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamsError {
+    /// Neither a named set nor a readable file.
+    NotFound {
+        /// What the user asked for.
+        requested: String,
+        /// The operating system's reason.
+        reason: String,
+    },
+    /// The TOML could not be parsed, or has unknown or missing keys.
+    Syntax {
+        /// The file or set name.
+        source: String,
+        /// The parser's message (it gives line and column).
+        message: String,
+    },
+    /// A key has a value outside its physical range, or a key that needs
+    /// another is given alone.
+    Invalid {
+        /// The file or set name.
+        source: String,
+        /// 1-based line of the offending value (0 when not known).
+        line: usize,
+        /// Dotted key, e.g. `w6.c_mid`.
+        key: String,
+        /// The value as read.
+        value: String,
+        /// What was expected.
+        expected: String,
+    },
+}
+
+impl fmt::Display for ParamsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamsError::NotFound { requested, reason } => write!(
+                f,
+                "material parameters '{requested}': not a named set ({}) and not a readable file ({reason})",
+                NAMED_SETS
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            ParamsError::Syntax { source, message } => {
+                write!(f, "{source}: {}", message.trim_end())
+            }
+            ParamsError::Invalid {
+                source,
+                line,
+                key,
+                value,
+                expected,
+            } => {
+                if *line > 0 {
+                    write!(f, "{source}:{line}: {key} = {value}: expected {expected}")
+                } else {
+                    write!(f, "{source}: {key} = {value}: expected {expected}")
+                }
+            }
+        }
+    }
+}
+
+impl std::error::Error for ParamsError {}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileRaw {
+    law: Option<Spanned<String>>,
+    name: Option<String>,
+    description: Option<String>,
+    w4: Option<TermRaw>,
+    w6: Option<TermRaw>,
+    w8: Option<TermRaw>,
+    w11: Option<TermRaw>,
+    coupling: Option<CouplingRaw>,
+    svk: Option<SvkRaw>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TermRaw {
+    c_ini: Spanned<f64>,
+    s_ini: Option<Spanned<f64>>,
+    c_mid: Option<Spanned<f64>>,
+    delta_s_mid: Option<Spanned<f64>>,
+    c_lock: Option<Spanned<f64>>,
+    i_lock: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CouplingRaw {
+    k_min: Spanned<f64>,
+    s11: Spanned<f64>,
+    e11: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SvkRaw {
+    e1: Spanned<f64>,
+    e2: Spanned<f64>,
+    nu12: Spanned<f64>,
+    g12: Spanned<f64>,
+}
+
+/// Validation context: the text (for line numbers) and the source name.
+struct Checker<'a> {
+    text: &'a str,
+    source: &'a str,
+}
+
+impl Checker<'_> {
+    fn line_of<T>(&self, spanned: &Spanned<T>) -> usize {
+        let start = spanned.span().start.min(self.text.len());
+        self.text[..start].matches('\n').count() + 1
+    }
+
+    fn invalid(&self, line: usize, key: &str, value: String, expected: &str) -> ParamsError {
+        ParamsError::Invalid {
+            source: self.source.to_string(),
+            line,
+            key: key.to_string(),
+            value,
+            expected: expected.to_string(),
+        }
+    }
+
+    /// Checks `lo (<|≤) v (<|≤) hi` and finiteness; returns the value.
+    fn range(
+        &self,
+        v: &Spanned<f64>,
+        key: &str,
+        ok: impl Fn(f64) -> bool,
+        expected: &str,
+    ) -> Result<f64, ParamsError> {
+        let x = *v.get_ref();
+        if x.is_finite() && ok(x) {
+            Ok(x)
+        } else {
+            Err(self.invalid(self.line_of(v), key, format!("{x}"), expected))
+        }
+    }
+
+    fn missing(&self, key: &str, expected: &str) -> ParamsError {
+        self.invalid(0, key, "(missing)".to_string(), expected)
+    }
+
+    fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError> {
+        let raw = raw.ok_or_else(|| {
+            self.missing(
+                &format!("[{table}]"),
+                "a table for this term (law \"ud-ncf\")",
+            )
+        })?;
+        let key = |k: &str| format!("{table}.{k}");
+        let c_ini = self.range(
+            &raw.c_ini,
+            &key("c_ini"),
+            |x| x > 0.0,
+            "an initial modulus > 0 MPa",
+        )?;
+        let transition = match (&raw.s_ini, &raw.c_mid, &raw.delta_s_mid) {
+            (None, None, None) => None,
+            (Some(s), Some(c), Some(d)) => Some(Transition {
+                s_ini: self.range(
+                    s,
+                    &key("s_ini"),
+                    |x| x > 0.0,
+                    "an initial stress limit > 0 MPa",
+                )?,
+                c_mid: self.range(c, &key("c_mid"), |x| x >= 0.0, "a middle modulus ≥ 0 MPa")?,
+                delta_s_mid: self.range(
+                    d,
+                    &key("delta_s_mid"),
+                    |x| x > 0.0,
+                    "a transition stress range > 0 MPa",
+                )?,
+            }),
+            (s, c, d) => {
+                let given = [("s_ini", s), ("c_mid", c), ("delta_s_mid", d)];
+                let (present, _) = given.iter().find(|(_, v)| v.is_some()).expect("one is set");
+                let (absent, _) = given
+                    .iter()
+                    .find(|(_, v)| v.is_none())
+                    .expect("one is unset");
+                let line = given
+                    .iter()
+                    .find_map(|(_, v)| v.as_ref().map(|v| self.line_of(v)))
+                    .unwrap_or(0);
+                return Err(self.invalid(
+                    line,
+                    &key(absent),
+                    "(missing)".to_string(),
+                    &format!(
+                        "a value: {table}.{present} is given, and a transition needs s_ini, c_mid and delta_s_mid together"
+                    ),
+                ));
+            }
+        };
+        let lock = match (&raw.c_lock, &raw.i_lock) {
+            (None, None) => None,
+            (Some(c), Some(i)) => Some(Lock {
+                c_lock: self.range(c, &key("c_lock"), |x| x >= 0.0, "a lock modulus ≥ 0 MPa")?,
+                i_lock: self.range(i, &key("i_lock"), |x| x >= 0.0, "a lock onset ≥ 0")?,
+            }),
+            (Some(c), None) => {
+                return Err(self.invalid(
+                    self.line_of(c),
+                    &key("i_lock"),
+                    "(missing)".to_string(),
+                    &format!("a value: {table}.c_lock is given, and a lock needs c_lock and i_lock together"),
+                ));
+            }
+            (None, Some(i)) => {
+                return Err(self.invalid(
+                    self.line_of(i),
+                    &key("c_lock"),
+                    "(missing)".to_string(),
+                    &format!("a value: {table}.i_lock is given, and a lock needs c_lock and i_lock together"),
+                ));
+            }
+        };
+        Ok(GeneralizedTerm::new(c_ini, transition, lock))
+    }
+
+    fn coupling(&self, raw: Option<&CouplingRaw>) -> Result<Coupling, ParamsError> {
+        let raw = raw.ok_or_else(|| {
+            self.missing("[coupling]", "a table k_min, s11, e11 (law \"ud-ncf\")")
+        })?;
+        Ok(Coupling {
+            k_min: self.range(
+                &raw.k_min,
+                "coupling.k_min",
+                |x| (0.0..=1.0).contains(&x),
+                "a value in [0, 1]",
+            )?,
+            s11: self.range(&raw.s11, "coupling.s11", |x| x >= 0.0, "an intensity ≥ 0")?,
+            e11: self.range(
+                &raw.e11,
+                "coupling.e11",
+                |x| x >= 1.0,
+                "an exponent ≥ 1 (C¹ at I11 = 1 needs > 1)",
+            )?,
+        })
+    }
+
+    fn svk(&self, raw: Option<&SvkRaw>) -> Result<OrthotropicSvk, ParamsError> {
+        let raw = raw.ok_or_else(|| {
+            self.missing(
+                "[svk]",
+                "a table e1, e2, nu12, g12 (law \"orthotropic-svk\")",
+            )
+        })?;
+        let e1 = self.range(&raw.e1, "svk.e1", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let e2 = self.range(&raw.e2, "svk.e2", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let g12 = self.range(&raw.g12, "svk.g12", |x| x > 0.0, "a shear modulus > 0 MPa")?;
+        let bound = (e1 / e2).sqrt();
+        let nu12 = self.range(
+            &raw.nu12,
+            "svk.nu12",
+            |x| x * x < e1 / e2,
+            &format!("|nu12| < sqrt(e1/e2) = {bound} (positive-definite stiffness)"),
+        )?;
+        Ok(OrthotropicSvk { e1, e2, nu12, g12 })
+    }
+}
+
+impl MaterialSpec {
+    /// Parses and validates a parameter set from TOML text; `source` names it
+    /// in error messages.
+    ///
+    /// # Errors
+    /// Syntax errors, unknown or missing keys, and values outside their
+    /// physical range, each naming the source, key, value and allowed range.
+    pub fn from_toml_str(text: &str, source: &str) -> Result<Self, ParamsError> {
+        let raw: FileRaw = toml::from_str(text).map_err(|e| ParamsError::Syntax {
+            source: source.to_string(),
+            message: e.to_string(),
+        })?;
+        let check = Checker { text, source };
+        let law = raw
+            .law
+            .as_ref()
+            .map(|l| (l.get_ref().as_str(), check.line_of(l)))
+            .unwrap_or(("ud-ncf", 0));
+        let forbid = |present: bool, table: &str, law: &str| -> Result<(), ParamsError> {
+            if present {
+                Err(check.invalid(
+                    0,
+                    &format!("[{table}]"),
+                    "(given)".to_string(),
+                    &format!("no such table for law \"{law}\""),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        let material = match law.0 {
+            "ud-ncf" => {
+                forbid(raw.svk.is_some(), "svk", "ud-ncf")?;
+                Material::UdNcf(UdNcf {
+                    w4: check.term(raw.w4.as_ref(), "w4")?,
+                    w6: check.term(raw.w6.as_ref(), "w6")?,
+                    w8: check.term(raw.w8.as_ref(), "w8")?,
+                    w11: check.term(raw.w11.as_ref(), "w11")?,
+                    coupling: check.coupling(raw.coupling.as_ref())?,
+                })
+            }
+            "orthotropic-svk" => {
+                for (present, table) in [
+                    (raw.w4.is_some(), "w4"),
+                    (raw.w6.is_some(), "w6"),
+                    (raw.w8.is_some(), "w8"),
+                    (raw.w11.is_some(), "w11"),
+                    (raw.coupling.is_some(), "coupling"),
+                ] {
+                    forbid(present, table, "orthotropic-svk")?;
+                }
+                Material::OrthotropicSvk(check.svk(raw.svk.as_ref())?)
+            }
+            other => {
+                return Err(check.invalid(
+                    law.1,
+                    "law",
+                    format!("\"{other}\""),
+                    "\"ud-ncf\" or \"orthotropic-svk\"",
+                ));
+            }
+        };
+        Ok(Self {
+            name: raw.name.unwrap_or_else(|| source.to_string()),
+            description: raw.description.unwrap_or_default(),
+            source: source.to_string(),
+            material,
+        })
+    }
+
+    /// The TOML text of a named set, if `name` is one.
+    pub fn named_text(name: &str) -> Option<&'static str> {
+        NAMED_SETS.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+    }
+
+    /// A named set (`schaefer2024`, `schaefer2024-printed`), or `None`.
+    pub fn named(name: &str) -> Option<Self> {
+        Self::named_text(name).map(|text| {
+            Self::from_toml_str(text, name).expect("the named sets shipped with ncform are valid")
+        })
+    }
+
+    /// The default set, [`DEFAULT_SET`].
+    pub fn default_set() -> Self {
+        Self::named(DEFAULT_SET).expect("the default set exists")
+    }
+
+    /// Resolves `name_or_path`: a named set first, else a TOML file.
+    ///
+    /// # Errors
+    /// [`ParamsError::NotFound`] when it is neither; else as
+    /// [`MaterialSpec::from_toml_str`].
+    pub fn load(name_or_path: &str) -> Result<Self, ParamsError> {
+        if let Some(spec) = Self::named(name_or_path) {
+            return Ok(spec);
+        }
+        let path = Path::new(name_or_path);
+        let text = std::fs::read_to_string(path).map_err(|e| ParamsError::NotFound {
+            requested: name_or_path.to_string(),
+            reason: e.to_string(),
+        })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+}

@@ -1,0 +1,166 @@
+//! The UD-NCF hyperelastic membrane law of Schäfer et al. (2024), Eq. (11):
+//! `W = W4(I4) + W6(I6) + W8(I8, I11) + W11(I11)`, with the errata of
+//! `docs/theory.md` applied.
+
+use super::MaterialError;
+use super::coupling::Coupling;
+use super::frame::{FibreFrame, Sym2};
+use super::generalized::GeneralizedTerm;
+use super::invariants::Invariants;
+use super::law::{
+    MembraneMaterial, StressState, Tangent, check_finite, stress_from_gradient,
+    tangent_from_hessian,
+};
+
+/// The UD-NCF law: four generalized terms and the coupling `k11`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UdNcf {
+    /// `W4 = G4(|I4 − 1|)`: roving tension and compression.
+    pub w4: GeneralizedTerm,
+    /// `W6 = G6(|I6|)`: shear.
+    pub w6: GeneralizedTerm,
+    /// `W8 = k11(I11) G8(I8 − 1)` for `I8 > 1`: stitching tension.
+    pub w8: GeneralizedTerm,
+    /// `W11 = G11(1 − I11)` for `I11 < 1`: compaction across the rovings.
+    pub w11: GeneralizedTerm,
+    /// The coupling `k11(I11)` (Eq. 15, corrected).
+    pub coupling: Coupling,
+}
+
+/// Everything the law computes at one point, in invariant space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UdNcfPoint {
+    /// The pseudo-invariants.
+    pub invariants: Invariants,
+    /// Total energy `W` [MPa].
+    pub energy: f64,
+    /// Energy contributions `[W4, W6, W8, W11]` [MPa].
+    pub contributions: [f64; 4],
+    /// Total derivative `dW/d(I4, I6, I8)` [MPa].
+    pub gradient: [f64; 3],
+    /// Total second derivative `d²W/d(I4, I6, I8)²` [MPa]; zero unless asked.
+    pub hessian: [[f64; 3]; 3],
+}
+
+impl UdNcf {
+    /// Evaluates energy, gradient and (if `with_hessian`) Hessian in
+    /// `p = (I4, I6, I8)`, applying the chain rule through `I11(p)`.
+    ///
+    /// Partial derivatives at fixed `I11` are collected first
+    /// (`W_,k`, `W_,kl`, `W_,11`, `W_,1111`, `W_,8 11`), then
+    /// `g_k = W_,k + W_,11 I11_,k` and
+    /// `H_kl = W_,kl + W_,k11 I11_,l + W_,l11 I11_,k + W_,1111 I11_,k I11_,l
+    /// + W_,11 I11_,kl`.
+    ///
+    /// # Errors
+    /// Degenerate states (see [`Invariants::new`]).
+    #[inline]
+    pub fn evaluate(
+        &self,
+        c: &Sym2,
+        frame: &FibreFrame,
+        with_hessian: bool,
+    ) -> Result<UdNcfPoint, MaterialError> {
+        let inv = Invariants::new(c, frame)?;
+        let mut gradient = [0.0; 3];
+        let mut hessian = [[0.0; 3]; 3];
+        // Partial derivatives with respect to I11 at fixed (I4, I6, I8).
+        let mut w_11 = 0.0;
+        let mut w_11_11 = 0.0;
+        let mut w_8_11 = 0.0;
+
+        // W4 = G4(|I4 − 1|): dW4/dI4 = sgn(I4 − 1) f4 (erratum 2).
+        let d4 = inv.i4 - 1.0;
+        let t4 = self.w4.eval(d4.abs());
+        gradient[0] = t4.stress.copysign(d4);
+        hessian[0][0] = t4.modulus;
+
+        // W6 = G6(|I6|).
+        let t6 = self.w6.eval(inv.i6.abs());
+        gradient[1] = t6.stress.copysign(inv.i6);
+        hessian[1][1] = t6.modulus;
+
+        // W11 = G11(1 − I11) for I11 < 1: dW11/dI11 = −f11 (erratum 2).
+        let mut w11 = 0.0;
+        if inv.i11 < 1.0 {
+            let t11 = self.w11.eval(1.0 - inv.i11);
+            w11 = t11.energy;
+            w_11 -= t11.stress;
+            w_11_11 += t11.modulus;
+        }
+
+        // W8 = k11(I11) G8(I8 − 1) for I8 > 1, coupled to I11.
+        let mut w8 = 0.0;
+        if inv.i8 > 1.0 {
+            let t8 = self.w8.eval(inv.i8 - 1.0);
+            let k = self.coupling.eval(inv.i11);
+            w8 = k.k * t8.energy;
+            gradient[2] = k.k * t8.stress;
+            hessian[2][2] = k.k * t8.modulus;
+            w_11 += k.dk * t8.energy;
+            w_11_11 += k.d2k * t8.energy;
+            w_8_11 = k.dk * t8.stress;
+        }
+
+        // Chain rule through I11(I4, I6, I8) (Eq. A.4–A.7).
+        let di11 = inv.i11_gradient();
+        for k in 0..3 {
+            gradient[k] += w_11 * di11[k];
+        }
+        if with_hessian {
+            let d2i11 = inv.i11_hessian();
+            for k in 0..3 {
+                for l in 0..3 {
+                    hessian[k][l] += w_11_11 * di11[k] * di11[l] + w_11 * d2i11[k][l];
+                }
+                // Mixed term W_,8 11: only k = 8 (index 2) depends on I11.
+                hessian[2][k] += w_8_11 * di11[k];
+                hessian[k][2] += w_8_11 * di11[k];
+            }
+        } else {
+            hessian = [[0.0; 3]; 3];
+        }
+
+        let contributions = [t4.energy, t6.energy, w8, w11];
+        Ok(UdNcfPoint {
+            invariants: inv,
+            energy: contributions.iter().sum(),
+            contributions,
+            gradient,
+            hessian,
+        })
+    }
+}
+
+impl MembraneMaterial for UdNcf {
+    #[inline]
+    fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError> {
+        let point = self.evaluate(c, frame, false)?;
+        let state = StressState {
+            energy: point.energy,
+            stress: stress_from_gradient(&point.gradient, frame),
+        };
+        check_finite(&state)?;
+        Ok(state)
+    }
+
+    #[inline]
+    fn stress_tangent(
+        &self,
+        c: &Sym2,
+        frame: &FibreFrame,
+    ) -> Result<(StressState, Tangent), MaterialError> {
+        let point = self.evaluate(c, frame, true)?;
+        let state = StressState {
+            energy: point.energy,
+            stress: stress_from_gradient(&point.gradient, frame),
+        };
+        check_finite(&state)?;
+        let tangent = tangent_from_hessian(&point.hessian, frame);
+        if tangent.iter().all(|v| v.is_finite()) {
+            Ok((state, tangent))
+        } else {
+            Err(MaterialError::NonFiniteResponse)
+        }
+    }
+}
