@@ -34,6 +34,19 @@ pub struct Lock {
     pub i_lock: f64,
 }
 
+/// Which branch of Eq. (12) a point lies on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum TermBranch {
+    /// `x < x_t`: `f = C_ini x`.
+    Initial,
+    /// `x_t ≤ x < I_lock`: the exponential transition to `C_mid`.
+    Middle,
+    /// `x ≥ I_lock` with `x < x_t`: the lock on the initial branch.
+    InitialLocked,
+    /// `x ≥ I_lock` and `x ≥ x_t`: the lock on the middle branch.
+    MiddleLocked,
+}
+
 /// One term's generalized stress function `f(x)`, `x ≥ 0` (Eq. 12).
 ///
 /// Construct with [`GeneralizedTerm::new`], which derives `x_t` and `c`.
@@ -88,6 +101,18 @@ impl GeneralizedTerm {
     /// The transition point `x_t = S_ini / C_ini` (infinite without a transition).
     pub fn transition_point(&self) -> f64 {
         self.x_t
+    }
+
+    /// The branch of Eq. (12) at `x`, with the same one-sided convention as
+    /// [`GeneralizedTerm::eval`] (a boundary belongs to the upper branch).
+    pub fn branch(&self, x: f64) -> TermBranch {
+        let locked = self.lock.is_some_and(|l| x >= l.i_lock);
+        match (x < self.x_t, locked) {
+            (true, false) => TermBranch::Initial,
+            (false, false) => TermBranch::Middle,
+            (true, true) => TermBranch::InitialLocked,
+            (false, true) => TermBranch::MiddleLocked,
+        }
     }
 
     /// `f(x)`, `f′(x)` and `G(x)` at `x ≥ 0` (Eq. 12 and its integral).

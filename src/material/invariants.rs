@@ -36,8 +36,9 @@ impl Invariants {
         if i4 <= 0.0 {
             return Err(MaterialError::CollapsedRovings { i4 });
         }
-        // det C = I4 I8 − I6² because {a0, b0} is orthonormal.
-        let det = i4 * i8 - i6 * i6;
+        // det C from the components (frame-independent round-off); it equals
+        // I4 I8 − I6² because {a0, b0} is orthonormal.
+        let det = c[0] * c[1] - c[2] * c[2];
         if det <= 0.0 {
             return Err(MaterialError::NonPositiveDeterminant { det });
         }
@@ -49,9 +50,9 @@ impl Invariants {
         })
     }
 
-    /// `det C = I4 I8 − I6²`.
+    /// `det C = I4 I11²` (equal to `I4 I8 − I6²`).
     pub fn det_c(&self) -> f64 {
-        self.i4 * self.i8 - self.i6 * self.i6
+        self.i4 * self.i11 * self.i11
     }
 
     /// `I10 = π/2 − arccos(I6 / sqrt(I4 I8))`: the shear angle γ12 [rad]

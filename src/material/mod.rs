@@ -6,6 +6,7 @@
 //! orthonormal reference frame) and a [`FibreFrame`] to `W`, `S` and `ℂ`.
 
 pub mod coupling;
+pub mod diagnostics;
 pub mod frame;
 pub mod generalized;
 pub mod invariants;
@@ -16,12 +17,12 @@ pub mod udncf;
 
 pub use coupling::Coupling;
 pub use frame::{FibreFrame, Sym2};
-pub use generalized::{GeneralizedTerm, Lock, Transition};
+pub use generalized::{GeneralizedTerm, Lock, TermBranch, Transition};
 pub use invariants::Invariants;
 pub use law::{MembraneMaterial, StressState, Tangent};
 pub use params::{MaterialSpec, ParamsError};
 pub use svk::OrthotropicSvk;
-pub use udncf::UdNcf;
+pub use udncf::{Branches, UdNcf};
 
 /// A state at which a law cannot be evaluated. Never replaced by NaN.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]

@@ -5,7 +5,7 @@
 use super::MaterialError;
 use super::coupling::Coupling;
 use super::frame::{FibreFrame, Sym2};
-use super::generalized::GeneralizedTerm;
+use super::generalized::{GeneralizedTerm, TermBranch};
 use super::invariants::Invariants;
 use super::law::{
     MembraneMaterial, StressState, Tangent, check_finite, stress_from_gradient,
@@ -42,7 +42,39 @@ pub struct UdNcfPoint {
     pub hessian: [[f64; 3]; 3],
 }
 
+/// The branch of every piece of the law at one state: which side of each
+/// kink (`I4 = 1`, `I6 = 0`, `I8 = 1`, `I11 = 1`, each term's `x_t` and
+/// `I_lock`) the state lies on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Branches {
+    /// `I4 ≥ 1` (tension) or not.
+    pub roving_tension: bool,
+    /// Branch of W4 at `|I4 − 1|`.
+    pub w4: TermBranch,
+    /// `I6 ≥ 0` or not.
+    pub positive_shear: bool,
+    /// Branch of W6 at `|I6|`.
+    pub w6: TermBranch,
+    /// Branch of W8 at `I8 − 1`, `None` when `I8 ≤ 1` (inactive).
+    pub w8: Option<TermBranch>,
+    /// Branch of W11 at `1 − I11`, `None` when `I11 ≥ 1` (inactive; `k11 = 1`).
+    pub w11: Option<TermBranch>,
+}
+
 impl UdNcf {
+    /// The branches at a state (for coverage counts and for keeping
+    /// finite-difference stencils off the kinks).
+    pub fn branches(&self, inv: &Invariants) -> Branches {
+        Branches {
+            roving_tension: inv.i4 >= 1.0,
+            w4: self.w4.branch((inv.i4 - 1.0).abs()),
+            positive_shear: inv.i6 >= 0.0,
+            w6: self.w6.branch(inv.i6.abs()),
+            w8: (inv.i8 > 1.0).then(|| self.w8.branch(inv.i8 - 1.0)),
+            w11: (inv.i11 < 1.0).then(|| self.w11.branch(1.0 - inv.i11)),
+        }
+    }
+
     /// Evaluates energy, gradient and (if `with_hessian`) Hessian in
     /// `p = (I4, I6, I8)`, applying the chain rule through `I11(p)`.
     ///

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use ncform::cli::{material_curves, material_eval};
+use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
 
@@ -46,6 +46,19 @@ enum MaterialCommand {
         /// Output folder (created if missing).
         #[arg(long, default_value = "out/material-curves")]
         out: PathBuf,
+    },
+    /// Check the stress and the tangent against finite differences of the
+    /// energy and the stress at random states over every branch.
+    Check {
+        /// A named parameter set or a TOML file.
+        #[arg(long, default_value = DEFAULT_SET, value_name = "NAME|FILE")]
+        params: String,
+        /// Number of random states.
+        #[arg(long, default_value_t = 10_000)]
+        states: usize,
+        /// Seed of the state sampler.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
     /// Print a named parameter set as TOML, to start a file of your own;
     /// without a name, list the named sets.
@@ -95,6 +108,19 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     material_curves::write_curves(&spec, &out).map_err(|e| e.to_string())?;
                 for path in written {
                     println!("{}", path.display());
+                }
+                Ok(ExitCode::SUCCESS)
+            }
+            MaterialCommand::Check {
+                params,
+                states,
+                seed,
+            } => {
+                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let report = material_check::run_check(&spec, states, seed);
+                print!("{}", material_check::format_report(&spec, &report));
+                if report.failed > 0 || report.rejected > 0 {
+                    return Ok(ExitCode::FAILURE);
                 }
                 Ok(ExitCode::SUCCESS)
             }

@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Independent verification suite of ncform. Run from anywhere:
+#   bash verification/run.sh
+# 1. creates verification/.venv (python3 -m venv) and installs the pinned
+#    requirements.txt into it (again only when requirements.txt changed),
+# 2. builds the binary: cargo build --release --bin ncform (repo root),
+# 3. runs every verification/verify_*.py suite with --ncform PATH; each
+#    prints PASS/FAIL lines and one "CHECK-SUMMARY passed=N failed=M" line,
+# 4. ends with exactly one line "verification: N passed, N failed" and exits
+#    non-zero if any check failed (the build counts as one check; a suite that
+#    crashes without its summary line counts as one failed check).
+set -euo pipefail
+
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+repo="$(cd "$here/.." && pwd)"
+venv="$here/.venv"
+py="${PYTHON:-python3}"
+
+# --- 1. Python environment ------------------------------------------------
+if [ ! -x "$venv/bin/python" ]; then
+    echo "# creating $venv"
+    "$py" -m venv "$venv"
+fi
+stamp="$venv/.requirements.installed"
+if ! cmp -s "$here/requirements.txt" "$stamp"; then
+    echo "# installing verification/requirements.txt"
+    "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
+        -r "$here/requirements.txt"
+    cp "$here/requirements.txt" "$stamp"
+fi
+
+passed=0
+failed=0
+
+# --- 2. Build -----------------------------------------------------------------
+bin="$repo/target/release/ncform"
+echo "# cargo build --release --bin ncform"
+if (cd "$repo" && cargo build --release --bin ncform); then
+    echo "PASS [build] cargo build --release --bin ncform succeeds"
+    passed=$((passed + 1))
+else
+    echo "FAIL [build] cargo build --release --bin ncform succeeds"
+    failed=$((failed + 1))
+    bin=""   # the suites then fail their checks that need the binary
+fi
+
+# --- 3. Suites ----------------------------------------------------------------
+shopt -s nullglob
+for suite in "$here"/verify_*.py; do
+    name="$(basename "$suite")"
+    echo "# running $name"
+    log="$(mktemp)"
+    set +e
+    "$venv/bin/python" "$suite" --ncform "$bin" 2>&1 | tee "$log"
+    rc=${PIPESTATUS[0]}
+    set -e
+    summary="$(grep -E '^CHECK-SUMMARY passed=[0-9]+ failed=[0-9]+$' "$log" | tail -n 1 || true)"
+    rm -f "$log"
+    if [ -n "$summary" ]; then
+        p="$(sed -E 's/^CHECK-SUMMARY passed=([0-9]+) failed=([0-9]+)$/\1/' <<<"$summary")"
+        f="$(sed -E 's/^CHECK-SUMMARY passed=([0-9]+) failed=([0-9]+)$/\2/' <<<"$summary")"
+        passed=$((passed + p))
+        failed=$((failed + f))
+        if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then
+            echo "FAIL [$name] exited $rc although it reported no failed check"
+            failed=$((failed + 1))
+        fi
+    else
+        echo "FAIL [$name] ended (exit $rc) without its CHECK-SUMMARY line"
+        failed=$((failed + 1))
+    fi
+done
+
+# --- 4. Closing line ------------------------------------------------------------
+echo "verification: $passed passed, $failed failed"
+[ "$failed" -eq 0 ]
