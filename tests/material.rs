@@ -942,3 +942,40 @@ fn term_branches_follow_the_one_sided_convention() {
     let law = udncf(&MaterialSpec::from_toml_str(&text, "t").unwrap());
     assert_eq!(law.w4.branch(0.007), TermBranch::InitialLocked);
 }
+
+/// Requirement (docs/theory.md §7): at the kinks I8 = 1 and I11 = 1 the
+/// loading side is used, so the tangent of the undeformed state is positive
+/// definite for every fibre angle: ℂ(C = I) = 4 [C4 N4⊗N4 + C6 N6⊗N6 +
+/// (C8 + C11/4) N8⊗N8] (hand-derived: ∂I11/∂p = (0, 0, ½) at C = I).
+#[test]
+fn reference_tangent_is_positive_definite_and_exact() {
+    for spec in [
+        MaterialSpec::default_set(),
+        MaterialSpec::named("schaefer2024-printed").unwrap(),
+        balanced(),
+    ] {
+        let law = udncf(&spec);
+        for k in 0..12 {
+            let frame = FibreFrame::from_angle((15.0 * k as f64).to_radians());
+            let (_, t) = law
+                .stress_tangent(&Sym2::new(1.0, 1.0, 0.0), &frame)
+                .unwrap();
+            let n = frame.structural();
+            let expected = 4.0
+                * (law.w4.c_ini * n[0] * n[0].transpose()
+                    + law.w6.c_ini * n[1] * n[1].transpose()
+                    + (law.w8.c_ini + 0.25 * law.w11.c_ini) * n[2] * n[2].transpose());
+            assert!(
+                (t - expected).norm() <= 1e-12 * expected.norm(),
+                "{}: {t} vs {expected}",
+                spec.name
+            );
+            let eigen = t.symmetric_eigenvalues();
+            assert!(
+                eigen.iter().all(|&e| e > 0.0),
+                "{}: eigenvalues {eigen}",
+                spec.name
+            );
+        }
+    }
+}

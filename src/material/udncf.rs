@@ -19,9 +19,9 @@ pub struct UdNcf {
     pub w4: GeneralizedTerm,
     /// `W6 = G6(|I6|)`: shear.
     pub w6: GeneralizedTerm,
-    /// `W8 = k11(I11) G8(I8 − 1)` for `I8 > 1`: stitching tension.
+    /// `W8 = k11(I11) G8(I8 − 1)` for `I8 ≥ 1`: stitching tension.
     pub w8: GeneralizedTerm,
-    /// `W11 = G11(1 − I11)` for `I11 < 1`: compaction across the rovings.
+    /// `W11 = G11(1 − I11)` for `I11 ≤ 1`: compaction across the rovings.
     pub w11: GeneralizedTerm,
     /// The coupling `k11(I11)` (Eq. 15, corrected).
     pub coupling: Coupling,
@@ -55,9 +55,9 @@ pub struct Branches {
     pub positive_shear: bool,
     /// Branch of W6 at `|I6|`.
     pub w6: TermBranch,
-    /// Branch of W8 at `I8 − 1`, `None` when `I8 ≤ 1` (inactive).
+    /// Branch of W8 at `I8 − 1`, `None` when `I8 < 1` (inactive).
     pub w8: Option<TermBranch>,
-    /// Branch of W11 at `1 − I11`, `None` when `I11 ≥ 1` (inactive; `k11 = 1`).
+    /// Branch of W11 at `1 − I11`, `None` when `I11 > 1` (inactive).
     pub w11: Option<TermBranch>,
 }
 
@@ -70,8 +70,8 @@ impl UdNcf {
             w4: self.w4.branch((inv.i4 - 1.0).abs()),
             positive_shear: inv.i6 >= 0.0,
             w6: self.w6.branch(inv.i6.abs()),
-            w8: (inv.i8 > 1.0).then(|| self.w8.branch(inv.i8 - 1.0)),
-            w11: (inv.i11 < 1.0).then(|| self.w11.branch(1.0 - inv.i11)),
+            w8: (inv.i8 >= 1.0).then(|| self.w8.branch(inv.i8 - 1.0)),
+            w11: (inv.i11 <= 1.0).then(|| self.w11.branch(1.0 - inv.i11)),
         }
     }
 
@@ -112,18 +112,21 @@ impl UdNcf {
         gradient[1] = t6.stress.copysign(inv.i6);
         hessian[1][1] = t6.modulus;
 
-        // W11 = G11(1 − I11) for I11 < 1: dW11/dI11 = −f11 (erratum 2).
+        // W11 = G11(1 − I11) for I11 ≤ 1: dW11/dI11 = −f11 (erratum 2).
+        // At the kinks I11 = 1 and I8 = 1 the loading side is taken: W, S
+        // are the same on both sides there, and the tangent then keeps the
+        // initial stiffnesses, so the undeformed state has a regular tangent.
         let mut w11 = 0.0;
-        if inv.i11 < 1.0 {
+        if inv.i11 <= 1.0 {
             let t11 = self.w11.eval(1.0 - inv.i11);
             w11 = t11.energy;
             w_11 -= t11.stress;
             w_11_11 += t11.modulus;
         }
 
-        // W8 = k11(I11) G8(I8 − 1) for I8 > 1, coupled to I11.
+        // W8 = k11(I11) G8(I8 − 1) for I8 ≥ 1, coupled to I11.
         let mut w8 = 0.0;
-        if inv.i8 > 1.0 {
+        if inv.i8 >= 1.0 {
             let t8 = self.w8.eval(inv.i8 - 1.0);
             let k = self.coupling.eval(inv.i11);
             w8 = k.k * t8.energy;
