@@ -12,6 +12,11 @@ use super::law::{
     tangent_from_hessian,
 };
 
+/// Half-width of the band around the kinks `I8 = 1` and `I11 = 1` that counts
+/// as the kink itself: 64 ulps, the round-off of the invariants of a rotated
+/// `C = I`. Inside it the loading side is taken with `x = 0`.
+pub const KINK_TOLERANCE: f64 = 64.0 * f64::EPSILON;
+
 /// The UD-NCF law: four generalized terms and the coupling `k11`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UdNcf {
@@ -70,8 +75,9 @@ impl UdNcf {
             w4: self.w4.branch((inv.i4 - 1.0).abs()),
             positive_shear: inv.i6 >= 0.0,
             w6: self.w6.branch(inv.i6.abs()),
-            w8: (inv.i8 >= 1.0).then(|| self.w8.branch(inv.i8 - 1.0)),
-            w11: (inv.i11 <= 1.0).then(|| self.w11.branch(1.0 - inv.i11)),
+            w8: (inv.i8 >= 1.0 - KINK_TOLERANCE).then(|| self.w8.branch((inv.i8 - 1.0).max(0.0))),
+            w11: (inv.i11 <= 1.0 + KINK_TOLERANCE)
+                .then(|| self.w11.branch((1.0 - inv.i11).max(0.0))),
         }
     }
 
@@ -117,8 +123,8 @@ impl UdNcf {
         // are the same on both sides there, and the tangent then keeps the
         // initial stiffnesses, so the undeformed state has a regular tangent.
         let mut w11 = 0.0;
-        if inv.i11 <= 1.0 {
-            let t11 = self.w11.eval(1.0 - inv.i11);
+        if inv.i11 <= 1.0 + KINK_TOLERANCE {
+            let t11 = self.w11.eval((1.0 - inv.i11).max(0.0));
             w11 = t11.energy;
             w_11 -= t11.stress;
             w_11_11 += t11.modulus;
@@ -126,8 +132,8 @@ impl UdNcf {
 
         // W8 = k11(I11) G8(I8 − 1) for I8 ≥ 1, coupled to I11.
         let mut w8 = 0.0;
-        if inv.i8 >= 1.0 {
-            let t8 = self.w8.eval(inv.i8 - 1.0);
+        if inv.i8 >= 1.0 - KINK_TOLERANCE {
+            let t8 = self.w8.eval((inv.i8 - 1.0).max(0.0));
             let k = self.coupling.eval(inv.i11);
             w8 = k.k * t8.energy;
             gradient[2] = k.k * t8.stress;
