@@ -8,6 +8,12 @@
 
 #![warn(missing_docs)]
 
+pub mod analytic;
+pub mod case;
 pub mod cli;
+pub mod config;
+pub mod element;
 pub mod material;
+pub mod mesh;
 pub mod post;
+pub mod solver;

@@ -4,3 +4,4 @@
 pub mod material_check;
 pub mod material_curves;
 pub mod material_eval;
+pub mod run;

@@ -8,7 +8,6 @@
 //! `law = "orthotropic-svk"` with a table `[svk]` (`e1`, `e2`, `nu12`, `g12`).
 //! Units: MPa.
 
-use std::fmt;
 use std::path::Path;
 
 use serde::Deserialize;
@@ -19,6 +18,7 @@ use super::coupling::Coupling;
 use super::generalized::{GeneralizedTerm, Lock, Transition};
 use super::svk::OrthotropicSvk;
 use super::udncf::UdNcf;
+use crate::config::{ConfigError, TomlChecker, parse_toml};
 
 /// The named parameter sets: `(name, TOML text)`. The first is the default.
 pub const NAMED_SETS: &[(&str, &str)] = &[
@@ -48,72 +48,8 @@ pub struct MaterialSpec {
     pub material: Material,
 }
 
-/// Why a parameter set could not be used. Every variant names its source.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ParamsError {
-    /// Neither a named set nor a readable file.
-    NotFound {
-        /// What the user asked for.
-        requested: String,
-        /// The operating system's reason.
-        reason: String,
-    },
-    /// The TOML could not be parsed, or has unknown or missing keys.
-    Syntax {
-        /// The file or set name.
-        source: String,
-        /// The parser's message (it gives line and column).
-        message: String,
-    },
-    /// A key has a value outside its physical range, or a key that needs
-    /// another is given alone.
-    Invalid {
-        /// The file or set name.
-        source: String,
-        /// 1-based line of the offending value (0 when not known).
-        line: usize,
-        /// Dotted key, e.g. `w6.c_mid`.
-        key: String,
-        /// The value as read.
-        value: String,
-        /// What was expected.
-        expected: String,
-    },
-}
-
-impl fmt::Display for ParamsError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ParamsError::NotFound { requested, reason } => write!(
-                f,
-                "material parameters '{requested}': not a named set ({}) and not a readable file ({reason})",
-                NAMED_SETS
-                    .iter()
-                    .map(|(n, _)| *n)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-            ParamsError::Syntax { source, message } => {
-                write!(f, "{source}: {}", message.trim_end())
-            }
-            ParamsError::Invalid {
-                source,
-                line,
-                key,
-                value,
-                expected,
-            } => {
-                if *line > 0 {
-                    write!(f, "{source}:{line}: {key} = {value}: expected {expected}")
-                } else {
-                    write!(f, "{source}: {key} = {value}: expected {expected}")
-                }
-            }
-        }
-    }
-}
-
-impl std::error::Error for ParamsError {}
+/// Why a parameter set could not be used (see [`ConfigError`]).
+pub type ParamsError = ConfigError;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -157,48 +93,16 @@ struct SvkRaw {
     g12: Spanned<f64>,
 }
 
-/// Validation context: the text (for line numbers) and the source name.
-struct Checker<'a> {
-    text: &'a str,
-    source: &'a str,
+type Checker<'a> = TomlChecker<'a>;
+
+/// The validation of each table, on the shared checker.
+trait ParamsChecks {
+    fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError>;
+    fn coupling(&self, raw: Option<&CouplingRaw>) -> Result<Coupling, ParamsError>;
+    fn svk(&self, raw: Option<&SvkRaw>) -> Result<OrthotropicSvk, ParamsError>;
 }
 
-impl Checker<'_> {
-    fn line_of<T>(&self, spanned: &Spanned<T>) -> usize {
-        let start = spanned.span().start.min(self.text.len());
-        self.text[..start].matches('\n').count() + 1
-    }
-
-    fn invalid(&self, line: usize, key: &str, value: String, expected: &str) -> ParamsError {
-        ParamsError::Invalid {
-            source: self.source.to_string(),
-            line,
-            key: key.to_string(),
-            value,
-            expected: expected.to_string(),
-        }
-    }
-
-    /// Checks `lo (<|≤) v (<|≤) hi` and finiteness; returns the value.
-    fn range(
-        &self,
-        v: &Spanned<f64>,
-        key: &str,
-        ok: impl Fn(f64) -> bool,
-        expected: &str,
-    ) -> Result<f64, ParamsError> {
-        let x = *v.get_ref();
-        if x.is_finite() && ok(x) {
-            Ok(x)
-        } else {
-            Err(self.invalid(self.line_of(v), key, format!("{x}"), expected))
-        }
-    }
-
-    fn missing(&self, key: &str, expected: &str) -> ParamsError {
-        self.invalid(0, key, "(missing)".to_string(), expected)
-    }
-
+impl ParamsChecks for Checker<'_> {
     fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError> {
         let raw = raw.ok_or_else(|| {
             self.missing(
@@ -327,10 +231,7 @@ impl MaterialSpec {
     /// Syntax errors, unknown or missing keys, and values outside their
     /// physical range, each naming the source, key, value and allowed range.
     pub fn from_toml_str(text: &str, source: &str) -> Result<Self, ParamsError> {
-        let raw: FileRaw = toml::from_str(text).map_err(|e| ParamsError::Syntax {
-            source: source.to_string(),
-            message: e.to_string(),
-        })?;
+        let raw: FileRaw = parse_toml(text, source)?;
         let check = Checker { text, source };
         let law = raw
             .law
@@ -417,8 +318,15 @@ impl MaterialSpec {
         }
         let path = Path::new(name_or_path);
         let text = std::fs::read_to_string(path).map_err(|e| ParamsError::NotFound {
-            requested: name_or_path.to_string(),
-            reason: e.to_string(),
+            requested: format!("material parameters '{name_or_path}'"),
+            reason: format!(
+                "not a named set ({}) and not a readable file ({e})",
+                NAMED_SETS
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
         })?;
         Self::from_toml_str(&text, &path.display().to_string())
     }

@@ -1,4 +1,7 @@
 //! Post-processing: CSV and PNG writers. Reads results, never changes them.
 
+pub mod contour;
 pub mod csv;
+pub mod fields;
 pub mod plot;
+pub mod vtu;

@@ -10,7 +10,7 @@ use plotters::style::{FontStyle, register_font};
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
 
-fn ensure_font() {
+pub(crate) fn ensure_font() {
     REGISTER.call_once(|| {
         // The embedded font is a valid TrueType file; failure would be a
         // build defect, and plotting then falls back to no text.

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use ncform::case::OatCase;
+use ncform::cli::run::{Progress, default_out_dir, run_case};
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
@@ -21,6 +23,18 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run a case file (an off-axis tension test) with the quasi-static
+    /// solver; writes CSV, PNG, VTU/PVD and a JSON summary.
+    Run {
+        /// The case file (TOML), e.g. cases/oat45.toml.
+        case: PathBuf,
+        /// Output folder (default: out/<case name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress output.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
         #[command(subcommand)]
@@ -81,6 +95,45 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.command {
+        Command::Run { case, out, quiet } => {
+            let spec = OatCase::load(&case).map_err(|e| e.to_string())?;
+            let out = out.unwrap_or_else(|| default_out_dir(&case));
+            let progress = if quiet {
+                Progress::Quiet
+            } else {
+                Progress::auto(spec.displacement)
+            };
+            let summary = run_case(&spec, &out, progress)?;
+            let forces: Vec<String> = summary
+                .forces
+                .iter()
+                .map(|(d, f)| format!("{f:.3} N at {d} mm"))
+                .collect();
+            println!(
+                "{}: {} steps, {} Newton iterations, {:.2} s; {}",
+                spec.title,
+                summary.steps,
+                summary.newton_iterations,
+                summary.wall_seconds,
+                forces.join(", ")
+            );
+            println!("results in {}", out.display());
+            if summary.complete {
+                Ok(ExitCode::SUCCESS)
+            } else {
+                if let ncform::solver::RunStatus::Incomplete {
+                    load_reached,
+                    load_attempted,
+                    reason,
+                } = &summary.status
+                {
+                    eprintln!(
+                        "error: the solve failed in the step from d = {load_reached} mm to {load_attempted} mm: {reason}; results up to d = {load_reached} mm are written and marked incomplete"
+                    );
+                }
+                Ok(ExitCode::from(2))
+            }
+        }
         Command::Material { command } => match command {
             MaterialCommand::Eval { params } => {
                 let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;

@@ -1,0 +1,4 @@
+//! Closed-form solutions used by tests and verification, so a test reads as
+//! "solver vs. theory".
+
+pub mod pin_jointed_net;

@@ -1,0 +1,7 @@
+//! Case files (TOML) → a runnable model. Only this layer knows what an
+//! off-axis tension test is; the solver sees a membrane and Dirichlet
+//! conditions. Field-by-field documentation: `docs/cases.md`.
+
+pub mod oat;
+
+pub use oat::{OatCase, OatModel, Zone};

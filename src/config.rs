@@ -1,0 +1,131 @@
+//! Reading TOML input files (parameter sets, case files) with errors that
+//! name the file, the line, the key, the value and what was expected.
+
+use std::fmt;
+
+use serde::de::DeserializeOwned;
+use toml::Spanned;
+
+/// Why an input file could not be used. Every variant names its source.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigError {
+    /// The input could not be found or read.
+    NotFound {
+        /// What the user asked for, e.g. `material parameters 'x.toml'`.
+        requested: String,
+        /// Why it was not found.
+        reason: String,
+    },
+    /// The TOML could not be parsed, or has unknown or missing keys.
+    Syntax {
+        /// The file or set name.
+        source: String,
+        /// The parser's message (it gives line and column).
+        message: String,
+    },
+    /// A key has a value outside its allowed range, or a key that needs
+    /// another is given alone.
+    Invalid {
+        /// The file or set name.
+        source: String,
+        /// 1-based line of the offending value (0 when not known).
+        line: usize,
+        /// Dotted key, e.g. `w6.c_mid`.
+        key: String,
+        /// The value as read.
+        value: String,
+        /// What was expected.
+        expected: String,
+    },
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::NotFound { requested, reason } => write!(f, "{requested}: {reason}"),
+            ConfigError::Syntax { source, message } => {
+                write!(f, "{source}: {}", message.trim_end())
+            }
+            ConfigError::Invalid {
+                source,
+                line,
+                key,
+                value,
+                expected,
+            } => {
+                if *line > 0 {
+                    write!(f, "{source}:{line}: {key} = {value}: expected {expected}")
+                } else {
+                    write!(f, "{source}: {key} = {value}: expected {expected}")
+                }
+            }
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// Deserialises `text` (named `source` in messages); unknown and missing
+/// keys are reported by the parser with line and column.
+///
+/// # Errors
+/// [`ConfigError::Syntax`].
+pub fn parse_toml<T: DeserializeOwned>(text: &str, source: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError::Syntax {
+        source: source.to_string(),
+        message: e.to_string(),
+    })
+}
+
+/// Validation helper over one TOML text: turns spans into line numbers and
+/// builds [`ConfigError::Invalid`] messages.
+pub struct TomlChecker<'a> {
+    /// The file's text.
+    pub text: &'a str,
+    /// The file or set name.
+    pub source: &'a str,
+}
+
+impl TomlChecker<'_> {
+    /// 1-based line of a spanned value.
+    pub fn line_of<T>(&self, spanned: &Spanned<T>) -> usize {
+        let start = spanned.span().start.min(self.text.len());
+        self.text[..start].matches('\n').count() + 1
+    }
+
+    /// An [`ConfigError::Invalid`] for `key` at `line`.
+    pub fn invalid(&self, line: usize, key: &str, value: String, expected: &str) -> ConfigError {
+        ConfigError::Invalid {
+            source: self.source.to_string(),
+            line,
+            key: key.to_string(),
+            value,
+            expected: expected.to_string(),
+        }
+    }
+
+    /// The value if it is finite and `ok` accepts it, else an error naming
+    /// `key` and `expected`.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`].
+    pub fn range(
+        &self,
+        v: &Spanned<f64>,
+        key: &str,
+        ok: impl Fn(f64) -> bool,
+        expected: &str,
+    ) -> Result<f64, ConfigError> {
+        let x = *v.get_ref();
+        if x.is_finite() && ok(x) {
+            Ok(x)
+        } else {
+            Err(self.invalid(self.line_of(v), key, format!("{x}"), expected))
+        }
+    }
+
+    /// A missing key or table.
+    pub fn missing(&self, key: &str, expected: &str) -> ConfigError {
+        self.invalid(0, key, "(missing)".to_string(), expected)
+    }
+}

@@ -1,0 +1,7 @@
+//! Element kernels. They integrate any law behind
+//! [`crate::material::MembraneMaterial`] and know nothing of a specific law,
+//! of meshes or of solvers; they allocate nothing and do no I/O.
+
+pub mod membrane;
+
+pub use membrane::{MembraneKinematics, MembraneReference, MembraneTangent};

@@ -1,0 +1,87 @@
+//! Per-element result fields of a membrane model at a displacement: the
+//! paper's strain measures (Section 4: `E22 = I8 − 1`, `γ = I10`,
+//! `E⊥ = I11 − 1`, not Green–Lagrange), the invariants, `k11` and the
+//! second Piola–Kirchhoff stress in global axes. Reads results, changes
+//! nothing.
+
+use crate::material::{Invariants, Material, MaterialError, MembraneMaterial};
+use crate::solver::MembraneModel;
+
+/// Fields of one element.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ElementFields {
+    /// `E22 = I8 − 1` (stitching strain).
+    pub e22: f64,
+    /// Shear angle `γ = I10` [deg].
+    pub shear_angle_deg: f64,
+    /// `E⊥ = I11 − 1` (strain across the current rovings).
+    pub e_perp: f64,
+    /// `I4`.
+    pub i4: f64,
+    /// `I6`.
+    pub i6: f64,
+    /// `I8`.
+    pub i8: f64,
+    /// `I11`.
+    pub i11: f64,
+    /// `k11(I11)` (1 for a law without coupling).
+    pub k11: f64,
+    /// Energy density `W` [MPa].
+    pub energy_density: f64,
+    /// `S` in global axes `[Sxx, Syy, Sxy]` [MPa] (reference configuration;
+    /// in-plane components for a membrane in the xy-plane).
+    pub stress_xy: [f64; 3],
+}
+
+/// Fields of every element at displacement `u` (all dofs, [mm]).
+///
+/// # Errors
+/// The first element whose state the law rejects, with its index.
+pub fn element_fields(
+    model: &MembraneModel,
+    u: &[f64],
+) -> Result<Vec<ElementFields>, (usize, MaterialError)> {
+    (0..model.triangles.len())
+        .map(|e| {
+            let reference = &model.references[e];
+            let x = model.element_displacements(e, u);
+            let kin = reference.kinematics(&x);
+            let inv = Invariants::new(&kin.c, &reference.frame).map_err(|err| (e, err))?;
+            let state = model
+                .material
+                .stress(&kin.c, &reference.frame)
+                .map_err(|err| (e, err))?;
+            let k11 = match &model.material {
+                Material::UdNcf(law) => law.coupling.eval(inv.i11).k,
+                Material::OrthotropicSvk(_) => 1.0,
+            };
+            // S_global = R S Rᵀ with R = [e1 e2] (3×2); keep xx, yy, xy.
+            let s = state.stress;
+            let (e1, e2) = (reference.e1, reference.e2);
+            let comp = |i: usize, j: usize| {
+                s[0] * e1[i] * e1[j] + s[1] * e2[i] * e2[j] + s[2] * (e1[i] * e2[j] + e2[i] * e1[j])
+            };
+            Ok(ElementFields {
+                e22: inv.i8 - 1.0,
+                shear_angle_deg: inv.i10().to_degrees(),
+                e_perp: inv.i11 - 1.0,
+                i4: inv.i4,
+                i6: inv.i6,
+                i8: inv.i8,
+                i11: inv.i11,
+                k11,
+                energy_density: state.energy,
+                stress_xy: [comp(0, 0), comp(1, 1), comp(0, 1)],
+            })
+        })
+        .collect()
+}
+
+/// Reference-area-weighted mean of `value` over `elements`.
+pub fn area_mean(model: &MembraneModel, elements: &[usize], value: impl Fn(usize) -> f64) -> f64 {
+    let (sum, area) = elements.iter().fold((0.0, 0.0), |(s, a), &e| {
+        let w = model.references[e].area;
+        (s + w * value(e), a + w)
+    });
+    if area > 0.0 { sum / area } else { 0.0 }
+}

@@ -1,0 +1,574 @@
+//! Quasi-static Newton solver with line search and adaptive load stepping.
+//!
+//! The load parameter `λ` scales the Dirichlet conditions
+//! (`u[dof] = w λ`). Each step solves `r(u) = 0` on the free dofs, where `r`
+//! is the internal force (no external loads), with the consistent tangent
+//! factorised by faer. Globalisation:
+//!
+//! 1. the full Newton step is taken if the residual along the direction
+//!    drops enough (`|r(u+du)·du| ≤ η |r(u)·du|`) or its norm decreases;
+//! 2. otherwise a line search on `g(α) = r(u + α du)·du` (bisection with
+//!    secant steps, within `[α_min, 1]`), which is the derivative of the
+//!    energy along the direction;
+//! 3. if `du` is not a descent direction of the energy (the tangent is
+//!    indefinite where the k11 coupling softens), the tangent is shifted,
+//!    `K + μ diag(K)`, with `μ` raised tenfold until it is (a
+//!    Levenberg–Marquardt trust region);
+//! 4. a step that does not converge in `max_iterations`, or meets an
+//!    inverted or collapsed element, is cut back; easy steps grow again.
+//!
+//! Convergence: `‖r_free‖ ≤ residual_tolerance · max(‖r_constrained‖,
+//! force_floor)` (relative to the reaction forces) and
+//! `|du·r| ≤ energy_tolerance · |du₀·r₀|` (energy norm, relative to the
+//! step's first iteration).
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::assembly::{Assembler, ElementFailure};
+use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
+use super::model::MembraneModel;
+
+/// Solver knobs, all with documented defaults (`docs/cases.md`).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NewtonParameters {
+    /// First load increment [units of λ, mm for a clamp displacement]. Default 1.
+    pub initial_increment: f64,
+    /// Largest load increment. Default 5.
+    pub max_increment: f64,
+    /// Smallest load increment before the run gives up. Default 1e-4.
+    pub min_increment: f64,
+    /// Newton iterations per step before a cut-back. Default 25.
+    pub max_iterations: usize,
+    /// Residual tolerance relative to the reaction forces. Default 1e-6.
+    pub residual_tolerance: f64,
+    /// Energy-norm tolerance relative to the step's first iteration. Default 1e-12.
+    pub energy_tolerance: f64,
+    /// Absolute floor of the residual criterion [N]. Default 1e-9.
+    pub force_floor: f64,
+    /// A step converged in at most this many iterations grows the next one. Default 6.
+    pub easy_iterations: usize,
+    /// Growth factor after an easy step. Default 1.5.
+    pub growth: f64,
+    /// Cut-back factor after a failed step. Default 0.5.
+    pub cutback: f64,
+    /// Use the line search (disable only for diagnostics). Default true.
+    pub line_search: bool,
+    /// Predict each step by extrapolating the previous increment. Default true.
+    pub extrapolate: bool,
+    /// Sparse factorisation. Default LDLᵀ (measured 3–8× faster than LU on
+    /// the OATs with identical results; `docs/solver.md`).
+    pub linear_solver: LinearSolverKind,
+}
+
+impl Default for NewtonParameters {
+    fn default() -> Self {
+        Self {
+            initial_increment: 1.0,
+            max_increment: 5.0,
+            min_increment: 1e-4,
+            max_iterations: 25,
+            residual_tolerance: 1e-6,
+            energy_tolerance: 1e-12,
+            force_floor: 1e-9,
+            easy_iterations: 6,
+            growth: 1.5,
+            cutback: 0.5,
+            line_search: true,
+            extrapolate: true,
+            linear_solver: LinearSolverKind::Ldlt,
+        }
+    }
+}
+
+/// One converged load step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepRecord {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Load parameter λ at the end of the step.
+    pub load: f64,
+    /// Reaction `Σ w f_int` conjugate to λ [N for a displacement λ].
+    pub reaction: f64,
+    /// Total energy [N·mm].
+    pub energy: f64,
+    /// Newton iterations of the converged attempt.
+    pub iterations: usize,
+    /// Residual norms `‖r_free‖` of the converged attempt, one per iteration [N].
+    pub residuals: Vec<f64>,
+    /// Failed attempts before this step converged.
+    pub cutbacks: usize,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "status", rename_all = "lowercase")]
+pub enum RunStatus {
+    /// Reached the final load.
+    Complete,
+    /// Stopped early; results up to `load_reached` are valid.
+    Incomplete {
+        /// Last converged load.
+        load_reached: f64,
+        /// The load of the step that failed.
+        load_attempted: f64,
+        /// Why the last attempt failed.
+        reason: String,
+    },
+}
+
+/// Wall-clock time spent in the parts of the solve [s].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct SolverTimings {
+    /// Symbolic analysis (once).
+    pub symbolic: f64,
+    /// Assembly of force and tangent, including line-search evaluations.
+    pub assembly: f64,
+    /// Numeric factorisations.
+    pub factorisation: f64,
+    /// Triangular solves.
+    pub solve: f64,
+}
+
+/// Result of a quasi-static run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct QuasiStaticResult {
+    /// Completion.
+    pub status: RunStatus,
+    /// Converged steps.
+    pub steps: Vec<StepRecord>,
+    /// Total Newton iterations, including failed attempts.
+    pub newton_iterations: usize,
+    /// Numeric factorisations.
+    pub factorisations: usize,
+    /// Time split.
+    pub timings: SolverTimings,
+    /// Number of free unknowns.
+    pub unknowns: usize,
+    /// Stored non-zeros of the tangent.
+    pub nonzeros: usize,
+}
+
+/// Why one attempt at a load step failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum AttemptError {
+    #[error("{0}")]
+    Element(#[from] ElementFailure),
+    #[error("{0}")]
+    Linear(#[from] LinearSolverError),
+    #[error(
+        "no convergence in {iterations} iterations (residual {residual:.3e} N, reaction {reaction:.3e} N)"
+    )]
+    NoConvergence {
+        iterations: usize,
+        residual: f64,
+        reaction: f64,
+    },
+    #[error("no descent direction even with a shifted tangent")]
+    NoDescent,
+    #[error("the line search found no acceptable step")]
+    LineSearch,
+}
+
+/// Scratch of a run, allocated once.
+struct Work {
+    internal: Vec<f64>,
+    trial_internal: Vec<f64>,
+    rhs: Vec<f64>,
+    trial: Vec<f64>,
+    diag: Vec<f64>,
+    diag_slots: Vec<usize>,
+}
+
+/// Everything the step loop needs.
+struct Newton<'a> {
+    model: &'a MembraneModel,
+    assembler: Assembler,
+    solver: SparseSolver,
+    params: &'a NewtonParameters,
+    work: Work,
+    timings: SolverTimings,
+    iterations: usize,
+    factorisations: usize,
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+impl Newton<'_> {
+    fn free_residual(&self, internal: &[f64], out: &mut [f64]) {
+        for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
+            out[k] = internal[d];
+        }
+    }
+
+    fn reaction_norm(&self, internal: &[f64]) -> f64 {
+        norm(
+            &self
+                .assembler
+                .dofs
+                .constrained
+                .iter()
+                .map(|c| internal[c.dof])
+                .collect::<Vec<_>>(),
+        )
+    }
+
+    fn assemble_tangent(&mut self, u: &[f64]) -> Result<f64, ElementFailure> {
+        let start = Instant::now();
+        let values = self.solver.values_mut();
+        let result = self
+            .assembler
+            .force_tangent(self.model, u, &mut self.work.internal, values);
+        self.timings.assembly += start.elapsed().as_secs_f64();
+        result
+    }
+
+    fn assemble_force_into_trial(&mut self, u: &[f64]) -> Result<f64, ElementFailure> {
+        let start = Instant::now();
+        let result = self
+            .assembler
+            .force(self.model, u, &mut self.work.trial_internal);
+        self.timings.assembly += start.elapsed().as_secs_f64();
+        result
+    }
+
+    fn factorize(&mut self) -> Result<(), LinearSolverError> {
+        let start = Instant::now();
+        let result = self.solver.factorize();
+        self.factorisations += 1;
+        self.timings.factorisation += start.elapsed().as_secs_f64();
+        result
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearSolverError> {
+        let start = Instant::now();
+        let result = self.solver.solve_in_place(rhs);
+        self.timings.solve += start.elapsed().as_secs_f64();
+        result
+    }
+
+    /// `g(α) = r(u + α du)·du` with `u + α du` written to `trial`.
+    fn directional(&mut self, u: &[f64], du: &[f64], alpha: f64) -> Result<f64, ElementFailure> {
+        let mut trial = std::mem::take(&mut self.work.trial);
+        trial.copy_from_slice(u);
+        for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
+            trial[d] += alpha * du[k];
+        }
+        let result = self.assemble_force_into_trial(&trial);
+        self.work.trial = trial;
+        result?;
+        Ok(self
+            .assembler
+            .dofs
+            .free
+            .iter()
+            .enumerate()
+            .map(|(k, &d)| self.work.trial_internal[d] * du[k])
+            .sum())
+    }
+
+    /// Line search on `g(α)`; returns the accepted α.
+    fn line_search(&mut self, u: &[f64], du: &[f64], g0: f64) -> Result<f64, AttemptError> {
+        const ETA: f64 = 0.5;
+        const ALPHA_MIN: f64 = 1.0 / 64.0;
+        // Bracket: g(0) = g0 < 0. Shrink α until the point is admissible.
+        let mut alpha = 1.0;
+        let g1 = loop {
+            match self.directional(u, du, alpha) {
+                Ok(g) => break g,
+                Err(_) if alpha > ALPHA_MIN => alpha *= 0.5,
+                Err(e) => return Err(e.into()),
+            }
+        };
+        if g1 <= -ETA * g0.abs() || g1.abs() <= ETA * g0.abs() {
+            // Still descending, or the slope dropped enough: accept.
+            return Ok(alpha);
+        }
+        // g changed sign in (0, α): Illinois (regula falsi) iterations.
+        let (mut a_lo, mut g_lo) = (0.0, g0);
+        let (mut a_hi, mut g_hi) = (alpha, g1);
+        let mut best = alpha;
+        for _ in 0..8 {
+            let a = (a_lo * g_hi - a_hi * g_lo) / (g_hi - g_lo);
+            let a = a.clamp(a_lo + 0.1 * (a_hi - a_lo), a_hi - 0.1 * (a_hi - a_lo));
+            let g = match self.directional(u, du, a) {
+                Ok(g) => g,
+                Err(_) => {
+                    a_hi = a;
+                    continue;
+                }
+            };
+            best = a;
+            if g.abs() <= ETA * g0.abs() {
+                return Ok(a);
+            }
+            if g < 0.0 {
+                a_lo = a;
+                g_lo = g;
+                g_hi *= 0.5;
+            } else {
+                a_hi = a;
+                g_hi = g;
+                g_lo *= 0.5;
+            }
+        }
+        if best >= ALPHA_MIN {
+            Ok(best)
+        } else {
+            Err(AttemptError::LineSearch)
+        }
+    }
+
+    /// Solves `(K + μ diag K) du = −r`, raising μ until `du` descends.
+    fn descent_direction(&mut self, r: &[f64], du: &mut [f64]) -> Result<f64, AttemptError> {
+        du.copy_from_slice(r);
+        du.iter_mut().for_each(|v| *v = -*v);
+        let plain = self
+            .factorize()
+            .and_then(|_| self.solve(du))
+            .map(|_| du.iter().zip(r).map(|(a, b)| a * b).sum::<f64>());
+        match plain {
+            Ok(g0) if g0 < 0.0 => return Ok(g0),
+            Ok(_) | Err(LinearSolverError::Singular(_)) | Err(LinearSolverError::NonFinite) => {}
+            Err(e) => return Err(e.into()),
+        }
+        // Shifted tangent: remember the diagonal, add μ |diag|.
+        let values = self.solver.values_mut();
+        for (k, &slot) in self.work.diag_slots.iter().enumerate() {
+            self.work.diag[k] = values[slot];
+        }
+        let scale = self.work.diag.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
+        let mut mu = 1e-6;
+        while mu <= 1e3 {
+            let values = self.solver.values_mut();
+            for (k, &slot) in self.work.diag_slots.iter().enumerate() {
+                let d = self.work.diag[k];
+                values[slot] = d + mu * d.abs().max(1e-6 * scale);
+            }
+            du.copy_from_slice(r);
+            du.iter_mut().for_each(|v| *v = -*v);
+            if self.factorize().is_ok() && self.solve(du).is_ok() {
+                let g0: f64 = du.iter().zip(r).map(|(a, b)| a * b).sum();
+                if g0 < 0.0 {
+                    return Ok(g0);
+                }
+            }
+            mu *= 10.0;
+        }
+        Err(AttemptError::NoDescent)
+    }
+
+    /// Newton iterations at a fixed load from the state `u` (updated in
+    /// place). Returns iterations, residual history, energy, reaction vector.
+    fn iterate(&mut self, u: &mut [f64]) -> Result<(usize, Vec<f64>, f64), AttemptError> {
+        let n = self.assembler.dofs.n_free();
+        let mut r = vec![0.0; n];
+        let mut du = vec![0.0; n];
+        let mut history = Vec::new();
+        let mut first_energy_norm = None;
+        let mut last_energy_norm = f64::INFINITY;
+        let mut energy = self.assemble_tangent(u)?;
+        for it in 0..=self.params.max_iterations {
+            let internal = std::mem::take(&mut self.work.internal);
+            self.free_residual(&internal, &mut r);
+            let reaction = self.reaction_norm(&internal);
+            self.work.internal = internal;
+            let residual = norm(&r);
+            history.push(residual);
+            let force_ok =
+                residual <= self.params.residual_tolerance * reaction.max(self.params.force_floor);
+            let energy_ok = match first_energy_norm {
+                None => true,
+                Some(e0) => last_energy_norm <= self.params.energy_tolerance * e0,
+            };
+            if force_ok && (energy_ok || residual <= self.params.force_floor) {
+                return Ok((it, history, energy));
+            }
+            if it == self.params.max_iterations {
+                return Err(AttemptError::NoConvergence {
+                    iterations: it,
+                    residual,
+                    reaction,
+                });
+            }
+            self.iterations += 1;
+            let g0 = self.descent_direction(&r, &mut du)?;
+            last_energy_norm = g0.abs();
+            first_energy_norm.get_or_insert(g0.abs());
+            let alpha = if self.params.line_search {
+                self.line_search(u, &du, g0)?
+            } else {
+                1.0
+            };
+            for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
+                u[d] += alpha * du[k];
+            }
+            energy = self.assemble_tangent(u)?;
+        }
+        unreachable!("the loop returns at max_iterations")
+    }
+}
+
+/// Drives `λ` from 0 to `final_load`, landing exactly on every value in
+/// `stops` (sorted, within (0, final_load]); calls `on_step` after every
+/// converged step with the record and the displacement (all dofs, [mm]).
+///
+/// `u` must hold the initial displacement (usually zeros, length 3 × nodes).
+/// `check_inversion` rejects triangles that turn over in their plane (for
+/// planar models).
+///
+/// # Errors
+/// Only set-up failures (the symbolic factorisation); a failed solve is a
+/// result with [`RunStatus::Incomplete`].
+#[allow(clippy::too_many_arguments)]
+pub fn solve_quasi_static(
+    model: &MembraneModel,
+    dofs: super::dofs::DofMap,
+    check_inversion: bool,
+    params: &NewtonParameters,
+    final_load: f64,
+    stops: &[f64],
+    u: &mut [f64],
+    mut on_step: impl FnMut(&StepRecord, &[f64]),
+) -> Result<QuasiStaticResult, String> {
+    let start = Instant::now();
+    let assembler = Assembler::new(model, dofs, check_inversion);
+    let solver = SparseSolver::new(params.linear_solver, assembler.symbolic.clone())
+        .map_err(|e| e.to_string())?;
+    let symbolic_time = start.elapsed().as_secs_f64();
+    let n_total = assembler.dofs.total;
+    let n_free = assembler.dofs.n_free();
+    // Diagonal slots of the free-dof matrix, for the shifted tangent.
+    let symbolic = &assembler.symbolic;
+    let diag_slots: Vec<usize> = (0..n_free)
+        .map(|j| {
+            let col = &symbolic.row_idx()[symbolic.col_ptr()[j]..symbolic.col_ptr()[j + 1]];
+            symbolic.col_ptr()[j] + col.binary_search(&j).expect("diagonal in pattern")
+        })
+        .collect();
+    let nonzeros = assembler.nnz();
+    let mut newton = Newton {
+        model,
+        assembler,
+        solver,
+        params,
+        work: Work {
+            internal: vec![0.0; n_total],
+            trial_internal: vec![0.0; n_total],
+            rhs: vec![0.0; n_free],
+            trial: vec![0.0; n_total],
+            diag: vec![0.0; n_free],
+            diag_slots,
+        },
+        timings: SolverTimings {
+            symbolic: symbolic_time,
+            ..Default::default()
+        },
+        iterations: 0,
+        factorisations: 0,
+    };
+    let _ = &newton.work.rhs;
+
+    let mut stops: Vec<f64> = stops
+        .iter()
+        .copied()
+        .filter(|s| *s > 0.0 && *s < final_load)
+        .collect();
+    stops.push(final_load);
+    stops.sort_by(f64::total_cmp);
+    stops.dedup();
+
+    let mut load = 0.0;
+    let mut increment = params.initial_increment.min(final_load);
+    let mut last_increment: Option<(f64, Vec<f64>)> = None;
+    let mut steps = Vec::new();
+    let mut cutbacks = 0;
+    let mut trial_u = u.to_vec();
+    let tiny = 1e-12 * final_load.abs().max(1.0);
+    let status = loop {
+        if load >= final_load - tiny {
+            break RunStatus::Complete;
+        }
+        let next_stop = stops
+            .iter()
+            .copied()
+            .find(|s| *s > load + tiny)
+            .unwrap_or(final_load);
+        let target = (load + increment).min(next_stop);
+        let step_increment = target - load;
+        // Predictor: prescribed values at the target, free dofs extrapolated.
+        let mut attempt = |extrapolate: bool, trial_u: &mut Vec<f64>| {
+            trial_u.copy_from_slice(u);
+            for c in &newton.assembler.dofs.constrained {
+                trial_u[c.dof] = c.per_unit_load * target;
+            }
+            if extrapolate && let Some((previous, delta)) = &last_increment {
+                let ratio = step_increment / previous;
+                for &d in &newton.assembler.dofs.free {
+                    trial_u[d] += ratio * delta[d];
+                }
+            }
+            newton.iterate(trial_u)
+        };
+        let mut result = attempt(params.extrapolate && last_increment.is_some(), &mut trial_u);
+        if params.extrapolate && last_increment.is_some() && result.is_err() {
+            result = attempt(false, &mut trial_u);
+        }
+        match result {
+            Ok((iterations, residuals, energy)) => {
+                let delta: Vec<f64> = trial_u.iter().zip(u.iter()).map(|(a, b)| a - b).collect();
+                u.copy_from_slice(&trial_u);
+                let reaction: f64 = newton
+                    .assembler
+                    .dofs
+                    .constrained
+                    .iter()
+                    .map(|c| c.per_unit_load * newton.work.internal[c.dof])
+                    .sum();
+                load = target;
+                let record = StepRecord {
+                    step: steps.len() + 1,
+                    load,
+                    reaction,
+                    energy,
+                    iterations,
+                    residuals,
+                    cutbacks,
+                };
+                on_step(&record, u);
+                steps.push(record);
+                cutbacks = 0;
+                last_increment = Some((step_increment, delta));
+                if iterations <= params.easy_iterations {
+                    increment = (increment * params.growth).min(params.max_increment);
+                }
+                // A step shortened to land on a stop does not shrink the next.
+                increment = increment.max(step_increment.min(params.max_increment));
+            }
+            Err(err) => {
+                cutbacks += 1;
+                increment = step_increment * params.cutback;
+                if increment < params.min_increment {
+                    break RunStatus::Incomplete {
+                        load_reached: load,
+                        load_attempted: target,
+                        reason: err.to_string(),
+                    };
+                }
+            }
+        }
+    };
+    Ok(QuasiStaticResult {
+        status,
+        steps,
+        newton_iterations: newton.iterations,
+        factorisations: newton.factorisations,
+        timings: newton.timings,
+        unknowns: n_free,
+        nonzeros,
+    })
+}
