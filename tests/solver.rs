@@ -212,6 +212,56 @@ fn boundary_nodes(mesh: &ncform::mesh::Mesh) -> Vec<usize> {
     nodes
 }
 
+/// The irregular 40 × 40 mm patch (8 × 8 cells, fibres at 30°, interior nodes
+/// moved by up to `jitter` mm) with `u = (F0 − I) X` prescribed on the
+/// boundary and every `z` fixed; the load parameter scales the boundary
+/// displacement from 0 to 1.
+fn patch_problem(
+    law: Material,
+    f0: Matrix2<f64>,
+    seed: u64,
+    jitter: f64,
+) -> (ncform::mesh::Mesh, MembraneModel, DofMap) {
+    let mut mesh = square_mesh(40.0, 8, 30.0);
+    let boundary = boundary_nodes(&mesh);
+    let mut rng = StdRng::seed_from_u64(seed);
+    for n in 0..mesh.nodes.len() {
+        if boundary.binary_search(&n).is_err() {
+            mesh.nodes[n].x += rng.random_range(-jitter..jitter);
+            mesh.nodes[n].y += rng.random_range(-jitter..jitter);
+        }
+    }
+    mesh.check().unwrap();
+    let model = MembraneModel::new(
+        mesh.nodes.clone(),
+        mesh.triangles.clone(),
+        &mesh.fibres,
+        law,
+        0.3,
+    )
+    .unwrap();
+    let mut conditions: Vec<Dirichlet> = (0..mesh.nodes.len())
+        .map(|n| Dirichlet {
+            dof: 3 * n + 2,
+            per_unit_load: 0.0,
+        })
+        .collect();
+    for &n in &boundary {
+        let x = Vector2::new(mesh.nodes[n].x, mesh.nodes[n].y);
+        let target = f0 * x - x;
+        conditions.push(Dirichlet {
+            dof: 3 * n,
+            per_unit_load: target.x,
+        });
+        conditions.push(Dirichlet {
+            dof: 3 * n + 1,
+            per_unit_load: target.y,
+        });
+    }
+    let dofs = DofMap::new(mesh.nodes.len(), &conditions);
+    (mesh, model, dofs)
+}
+
 /// Requirement (patch test): a linear displacement field `u = (F0 − I) X`
 /// imposed on the boundary of an irregular mesh gives the exact homogeneous
 /// state inside, for the SVK and the UD-NCF law. Tolerance: the Newton
@@ -221,60 +271,16 @@ fn boundary_nodes(mesh: &ncform::mesh::Mesh) -> Vec<usize> {
 fn patch_test_reproduces_the_homogeneous_state() {
     let f0 = Matrix2::new(1.04, 0.18, -0.03, 1.09);
     for (name, law) in laws() {
-        let mut mesh = square_mesh(40.0, 8, 30.0);
-        let boundary = boundary_nodes(&mesh);
-        // Make it irregular: move interior nodes by up to 25 % of the spacing.
-        let mut rng = StdRng::seed_from_u64(3);
-        for n in 0..mesh.nodes.len() {
-            if boundary.binary_search(&n).is_err() {
-                mesh.nodes[n].x += rng.random_range(-1.25..1.25);
-                mesh.nodes[n].y += rng.random_range(-1.25..1.25);
-            }
-        }
-        mesh.check().unwrap();
-        let model = MembraneModel::new(
-            mesh.nodes.clone(),
-            mesh.triangles.clone(),
-            &mesh.fibres,
-            law,
-            0.3,
-        )
-        .unwrap();
-        let mut conditions: Vec<Dirichlet> = (0..mesh.nodes.len())
-            .map(|n| Dirichlet {
-                dof: 3 * n + 2,
-                per_unit_load: 0.0,
-            })
-            .collect();
-        for &n in &boundary {
-            let x = mesh.nodes[n];
-            let target = f0 * Vector2::new(x.x, x.y) - Vector2::new(x.x, x.y);
-            conditions.push(Dirichlet {
-                dof: 3 * n,
-                per_unit_load: target.x,
-            });
-            conditions.push(Dirichlet {
-                dof: 3 * n + 1,
-                per_unit_load: target.y,
-            });
-        }
+        // Irregular: interior nodes moved by up to 25 % of the 5 mm spacing.
+        let (mesh, model, dofs) = patch_problem(law, f0, 3, 1.25);
         let params = NewtonParameters {
             residual_tolerance: 1e-12,
             initial_increment: 0.25,
             ..Default::default()
         };
         let mut u = vec![0.0; 3 * mesh.nodes.len()];
-        let result = solve_quasi_static(
-            &model,
-            DofMap::new(mesh.nodes.len(), &conditions),
-            true,
-            &params,
-            1.0,
-            &[],
-            &mut u,
-            |_, _| {},
-        )
-        .unwrap();
+        let result =
+            solve_quasi_static(&model, dofs, true, &params, 1.0, &[], &mut u, |_, _| {}).unwrap();
         assert_eq!(result.status, RunStatus::Complete, "{name}");
         for n in 0..mesh.nodes.len() {
             let x = mesh.nodes[n];
@@ -514,58 +520,15 @@ fn newton_converges_quadratically() {
         "target state not in mixed mode: {inv:?}"
     );
     eprintln!("patch target: {inv:?}, {branches:?}");
-    let mut mesh = square_mesh(40.0, 8, 30.0);
-    let boundary = boundary_nodes(&mesh);
-    let mut rng = StdRng::seed_from_u64(8);
-    for n in 0..mesh.nodes.len() {
-        if boundary.binary_search(&n).is_err() {
-            mesh.nodes[n].x += rng.random_range(-1.0..1.0);
-            mesh.nodes[n].y += rng.random_range(-1.0..1.0);
-        }
-    }
-    let model = MembraneModel::new(
-        mesh.nodes.clone(),
-        mesh.triangles.clone(),
-        &mesh.fibres,
-        law,
-        0.3,
-    )
-    .unwrap();
-    let mut conditions: Vec<Dirichlet> = (0..mesh.nodes.len())
-        .map(|n| Dirichlet {
-            dof: 3 * n + 2,
-            per_unit_load: 0.0,
-        })
-        .collect();
-    for &n in &boundary {
-        let x = Vector2::new(mesh.nodes[n].x, mesh.nodes[n].y);
-        let target = f0 * x - x;
-        conditions.push(Dirichlet {
-            dof: 3 * n,
-            per_unit_load: target.x,
-        });
-        conditions.push(Dirichlet {
-            dof: 3 * n + 1,
-            per_unit_load: target.y,
-        });
-    }
+    let (mesh, model, dofs) = patch_problem(law, f0, 8, 1.0);
     let params = NewtonParameters {
         initial_increment: 1.0,
         residual_tolerance: 1e-10,
         ..Default::default()
     };
     let mut u = vec![0.0; 3 * mesh.nodes.len()];
-    let result = solve_quasi_static(
-        &model,
-        DofMap::new(mesh.nodes.len(), &conditions),
-        true,
-        &params,
-        1.0,
-        &[],
-        &mut u,
-        |_, _| {},
-    )
-    .unwrap();
+    let result =
+        solve_quasi_static(&model, dofs, true, &params, 1.0, &[], &mut u, |_, _| {}).unwrap();
     assert_eq!(result.status, RunStatus::Complete);
     // The last step ends at the homogeneous state (a first attempt in one
     // step may be cut back).

@@ -329,7 +329,7 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
     .map_err(|e| io_err(&out.join("oat.pvd"), e))?;
     write_histories(case, out, &history, &result.status)?;
     if let Some(snap) = &snapshot {
-        write_contours(case, &built, out, snap)?;
+        write_contours(&built, out, snap)?;
     }
     output_seconds += start.elapsed().as_secs_f64();
 
@@ -474,12 +474,7 @@ fn write_histories(
     )
 }
 
-fn write_contours(
-    case: &OatCase,
-    built: &OatModel,
-    out: &Path,
-    snap: &Snapshot,
-) -> Result<(), String> {
+fn write_contours(built: &OatModel, out: &Path, snap: &Snapshot) -> Result<(), String> {
     let points: Vec<[f64; 2]> = built
         .mesh
         .nodes
@@ -487,39 +482,30 @@ fn write_contours(
         .enumerate()
         .map(|(n, x)| [x.x + snap.u[3 * n], x.y + snap.u[3 * n + 1]])
         .collect();
-    let e22: Vec<f64> = snap.fields.iter().map(|f| f.e22).collect();
-    let gamma: Vec<f64> = snap.fields.iter().map(|f| f.shear_angle_deg).collect();
-    let e_perp: Vec<f64> = snap.fields.iter().map(|f| f.e_perp).collect();
-    let title = |what: &str| format!("{what} at d = {} mm", snap.displacement);
     // Clamp-corner elements carry singular strains; a 0.5–99.5 % percentile
     // range keeps them from washing out the map (they saturate instead).
-    let maps = [
-        ContourMap {
-            title: title("E22"),
-            points: &points,
-            triangles: &built.mesh.triangles,
-            values: &e22,
-            label: format!("{} (0.5-99.5 % range)", "E22 = I8 - 1 [-]"),
-            range: percentile_range(&e22, 0.005),
-        },
-        ContourMap {
-            title: title("shear angle"),
-            points: &points,
-            triangles: &built.mesh.triangles,
-            values: &gamma,
-            label: format!("{} (0.5-99.5 % range)", "shear angle [deg]"),
-            range: percentile_range(&gamma, 0.005),
-        },
-        ContourMap {
-            title: title("E_perp"),
-            points: &points,
-            triangles: &built.mesh.triangles,
-            values: &e_perp,
-            label: format!("{} (0.5-99.5 % range)", "E_perp = I11 - 1 [-]"),
-            range: percentile_range(&e_perp, 0.005),
-        },
+    type Pick = fn(&ElementFields) -> f64;
+    let quantities: [(&str, &str, Pick); 3] = [
+        ("E22", "E22 = I8 - 1 [-]", |f| f.e22),
+        ("shear angle", "shear angle [deg]", |f| f.shear_angle_deg),
+        ("E_perp", "E_perp = I11 - 1 [-]", |f| f.e_perp),
     ];
-    let _ = case;
+    let values: Vec<Vec<f64>> = quantities
+        .iter()
+        .map(|(_, _, pick)| snap.fields.iter().map(pick).collect())
+        .collect();
+    let maps: Vec<ContourMap> = quantities
+        .iter()
+        .zip(&values)
+        .map(|((name, label, _), v)| ContourMap {
+            title: format!("{name} at d = {} mm", snap.displacement),
+            points: &points,
+            triangles: &built.mesh.triangles,
+            values: v,
+            label: format!("{label} (0.5-99.5 % range)"),
+            range: percentile_range(v, 0.005),
+        })
+        .collect();
     write_contour_png(&out.join("contours.png"), &maps, (1800, 1100))
 }
 

@@ -18,7 +18,7 @@
 //! ```
 //!
 //! with `S = [S11, S22, S12]` and `ℂ` in the Voigt storage of
-//! [`crate::material::Tangent`]. See `docs/theory.md` §11.
+//! [`crate::material::Tangent`]. See `docs/solver.md`.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
