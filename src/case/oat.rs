@@ -220,6 +220,14 @@ impl OatCase {
                 }
             },
         };
+        if let (Some(_), Some(p)) = (&m.file, &m.pattern) {
+            return Err(check.invalid(
+                check.line_of(p),
+                "mesh.pattern",
+                format!("\"{}\"", p.get_ref()),
+                "no pattern with mesh.file (the file's triangles are used as they are)",
+            ));
+        }
         let mesh = match (&m.file, &m.element_size, &m.nx, &m.ny) {
             (Some(file), None, None, None) => MeshSource::File {
                 path: base_dir.join(file.get_ref()),
@@ -261,7 +269,16 @@ impl OatCase {
         let material = match params {
             None => MaterialSpec::default_set(),
             Some(p) if MaterialSpec::named_text(&p).is_some() => MaterialSpec::load(&p)?,
-            Some(p) => MaterialSpec::load(&base_dir.join(&p).display().to_string())?,
+            Some(p) => MaterialSpec::load(&base_dir.join(&p).display().to_string()).map_err(
+                |e| match e {
+                    // Say which case key asked for the missing set or file.
+                    ConfigError::NotFound { requested, reason } => ConfigError::NotFound {
+                        requested: format!("{source}: material.params = \"{p}\" ({requested})"),
+                        reason,
+                    },
+                    other => other,
+                },
+            )?,
         };
         let thickness = match thickness {
             None => DEFAULT_THICKNESS,
@@ -421,6 +438,16 @@ impl OatCase {
                 dof: 3 * n + 2,
                 per_unit_load: 0.0,
             });
+        }
+        // Nodes no triangle uses (reference points of a read mesh) carry no
+        // stiffness: fix them so the tangent stays regular.
+        for n in mesh.unconnected_nodes() {
+            for k in 0..2 {
+                dirichlet.push(Dirichlet {
+                    dof: 3 * n + k,
+                    per_unit_load: 0.0,
+                });
+            }
         }
         for &n in &fixed_nodes {
             dirichlet.push(Dirichlet {

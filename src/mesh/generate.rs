@@ -194,18 +194,19 @@ fn too_many(h: f64) -> MeshError {
     }
 }
 
+/// Relative tolerance on the triangle count of an `ElementSize` grid: grids
+/// within it are preferred, then the best-aligned among them.
+pub const COUNT_TOLERANCE: f64 = 0.10;
+
 /// Chooses `(nx, ny)` for the target element size `h`.
 ///
 /// At 0° and ±90°: `nx = round(W/h)`, `ny = round(L/h)` (at least 1).
 /// Otherwise, with `t = tan|θ|` and the nominal `nx0 = W / (h √t)` (cells of
 /// area `h²` with `dx/dy = t`): every `nx` in `[0.8 nx0, 1.25 nx0]` with
-/// `ny = round(nx L t / W)` is a candidate; the one whose cell diagonal is
-/// closest in angle to the rovings wins, ties (1e-9°) going to the cell
-/// count closest to `W L / h²`.
-/// Relative tolerance on the triangle count of an `ElementSize` grid: grids
-/// within it are preferred, then the best-aligned among them.
-pub const COUNT_TOLERANCE: f64 = 0.10;
-
+/// `ny = round(nx L t / W)` is a candidate. Candidates whose cell count is
+/// within [`COUNT_TOLERANCE`] of `W L / h²` come first; among them the one
+/// whose cell diagonal is closest in angle to the rovings wins, ties (1e-9°)
+/// going to the closer count.
 fn choose_counts(w: f64, l: f64, theta: f64, h: f64) -> Result<(usize, usize), MeshError> {
     let limit = (MAX_TRIANGLES / 2) as f64;
     if theta == 0.0 || theta.abs() == 90.0 {

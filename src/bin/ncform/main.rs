@@ -109,13 +109,14 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 .iter()
                 .map(|(d, f)| format!("{f:.3} N at {d} mm"))
                 .collect();
+            let forces = if forces.is_empty() {
+                String::new()
+            } else {
+                format!("; {}", forces.join(", "))
+            };
             println!(
-                "{}: {} steps, {} Newton iterations, {:.2} s; {}",
-                spec.title,
-                summary.steps,
-                summary.newton_iterations,
-                summary.wall_seconds,
-                forces.join(", ")
+                "{}: {} steps, {} Newton iterations, {:.2} s{forces}",
+                spec.title, summary.steps, summary.newton_iterations, summary.wall_seconds
             );
             println!("results in {}", out.display());
             if summary.complete {
