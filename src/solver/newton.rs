@@ -176,7 +176,6 @@ enum AttemptError {
 struct Work {
     internal: Vec<f64>,
     trial_internal: Vec<f64>,
-    rhs: Vec<f64>,
     trial: Vec<f64>,
     diag: Vec<f64>,
     diag_slots: Vec<usize>,
@@ -206,15 +205,13 @@ impl Newton<'_> {
     }
 
     fn reaction_norm(&self, internal: &[f64]) -> f64 {
-        norm(
-            &self
-                .assembler
-                .dofs
-                .constrained
-                .iter()
-                .map(|c| internal[c.dof])
-                .collect::<Vec<_>>(),
-        )
+        self.assembler
+            .dofs
+            .constrained
+            .iter()
+            .map(|c| internal[c.dof] * internal[c.dof])
+            .sum::<f64>()
+            .sqrt()
     }
 
     fn assemble_tangent(&mut self, u: &[f64]) -> Result<f64, ElementFailure> {
@@ -459,7 +456,6 @@ pub fn solve_quasi_static(
         work: Work {
             internal: vec![0.0; n_total],
             trial_internal: vec![0.0; n_total],
-            rhs: vec![0.0; n_free],
             trial: vec![0.0; n_total],
             diag: vec![0.0; n_free],
             diag_slots,
@@ -471,7 +467,6 @@ pub fn solve_quasi_static(
         iterations: 0,
         factorisations: 0,
     };
-    let _ = &newton.work.rhs;
 
     let mut stops: Vec<f64> = stops
         .iter()
