@@ -9,12 +9,13 @@ use std::collections::BTreeSet;
 
 use ncform::cli::{material_curves, material_eval};
 use ncform::material::diagnostics::{
-    FdCheck, SampleRanges, StateSampler, c_from_invariants, fd_check, fd_step,
+    FdCheck, SampleRanges, StateSampler, branches_at, c_from_invariants, fd_check,
+    stencil_on_one_branch,
 };
 use ncform::material::params::ParamsError;
 use ncform::material::{
-    Branches, FibreFrame, Invariants, Material, MaterialError, MaterialSpec, MembraneMaterial,
-    StressState, Sym2, Tangent, TermBranch, UdNcf,
+    FibreFrame, Invariants, Material, MaterialError, MaterialSpec, MembraneMaterial, StressState,
+    Sym2, Tangent, TermBranch, UdNcf,
 };
 
 /// Every term with a transition and a lock, moduli of order one, a
@@ -84,24 +85,6 @@ fn all_sets() -> Vec<MaterialSpec> {
         balanced(),
         MaterialSpec::from_toml_str(SVK, "svk-test").unwrap(),
     ]
-}
-
-/// The branches at `C`, or `None` for a law without branches.
-fn branches_at(material: &Material, c: &Sym2, frame: &FibreFrame) -> Option<Branches> {
-    match material {
-        Material::UdNcf(law) => Invariants::new(c, frame).ok().map(|inv| law.branches(&inv)),
-        Material::OrthotropicSvk(_) => None,
-    }
-}
-
-/// True when the whole finite-difference stencil `C ± h D` stays on the
-/// branches of `C` (a stencil across a kink measures a one-sided mix).
-fn stencil_on_one_branch(material: &Material, c: &Sym2, frame: &FibreFrame, d: &Sym2) -> bool {
-    let h = fd_step(c);
-    let here = branches_at(material, c, frame);
-    [-h, -0.5 * h, 0.5 * h, h]
-        .iter()
-        .all(|s| branches_at(material, &(c + *s * d), frame) == here)
 }
 
 /// Requirement (issue 2, item 6): S = 2∂W/∂C and ℂ = 2∂S/∂C agree with finite

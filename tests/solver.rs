@@ -7,6 +7,7 @@ use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
 use ncform::analytic::pin_jointed_net::NetSpecimen;
+use ncform::case::oat::oat_clamps;
 use ncform::element::MembraneReference;
 use ncform::material::{
     FibreFrame, GeneralizedTerm, Material, MaterialSpec, MembraneMaterial, Sym2,
@@ -241,22 +242,15 @@ fn patch_problem(
     )
     .unwrap();
     let mut conditions: Vec<Dirichlet> = (0..mesh.nodes.len())
-        .map(|n| Dirichlet {
-            dof: 3 * n + 2,
-            per_unit_load: 0.0,
-        })
+        .map(|n| Dirichlet::fixed(n, 2))
         .collect();
     for &n in &boundary {
         let x = Vector2::new(mesh.nodes[n].x, mesh.nodes[n].y);
         let target = f0 * x - x;
-        conditions.push(Dirichlet {
-            dof: 3 * n,
-            per_unit_load: target.x,
-        });
-        conditions.push(Dirichlet {
-            dof: 3 * n + 1,
-            per_unit_load: target.y,
-        });
+        conditions.extend([
+            Dirichlet::driven(n, 0, target.x),
+            Dirichlet::driven(n, 1, target.y),
+        ]);
     }
     let dofs = DofMap::new(mesh.nodes.len(), &conditions);
     (mesh, model, dofs)
@@ -332,32 +326,12 @@ fn coarse_oat(
         0.3,
     )
     .unwrap();
-    let mut conditions: Vec<Dirichlet> = (0..mesh.nodes.len())
-        .map(|n| Dirichlet {
-            dof: 3 * n + 2,
-            per_unit_load: 0.0,
-        })
-        .collect();
-    for &n in mesh.node_set("bottom").unwrap() {
-        conditions.push(Dirichlet {
-            dof: 3 * n,
-            per_unit_load: 0.0,
-        });
-        conditions.push(Dirichlet {
-            dof: 3 * n + 1,
-            per_unit_load: 0.0,
-        });
-    }
-    for &n in mesh.node_set("top").unwrap() {
-        conditions.push(Dirichlet {
-            dof: 3 * n,
-            per_unit_load: 0.0,
-        });
-        conditions.push(Dirichlet {
-            dof: 3 * n + 1,
-            per_unit_load: 1.0,
-        });
-    }
+    let conditions = oat_clamps(
+        mesh.nodes.len(),
+        mesh.node_set("bottom").unwrap(),
+        mesh.node_set("top").unwrap(),
+        &[],
+    );
     let dofs = DofMap::new(mesh.nodes.len(), &conditions);
     (mesh, model, dofs)
 }

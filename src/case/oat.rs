@@ -432,43 +432,12 @@ impl OatCase {
         mesh.check().map_err(|e| e.to_string())?;
         let fixed_nodes = mesh.node_set(&fixed).map_err(|e| e.to_string())?.to_vec();
         let moving_nodes = mesh.node_set(&moving).map_err(|e| e.to_string())?.to_vec();
-        let mut dirichlet = Vec::new();
-        for n in 0..mesh.nodes.len() {
-            dirichlet.push(Dirichlet {
-                dof: 3 * n + 2,
-                per_unit_load: 0.0,
-            });
-        }
-        // Nodes no triangle uses (reference points of a read mesh) carry no
-        // stiffness: fix them so the tangent stays regular.
-        for n in mesh.unconnected_nodes() {
-            for k in 0..2 {
-                dirichlet.push(Dirichlet {
-                    dof: 3 * n + k,
-                    per_unit_load: 0.0,
-                });
-            }
-        }
-        for &n in &fixed_nodes {
-            dirichlet.push(Dirichlet {
-                dof: 3 * n,
-                per_unit_load: 0.0,
-            });
-            dirichlet.push(Dirichlet {
-                dof: 3 * n + 1,
-                per_unit_load: 0.0,
-            });
-        }
-        for &n in &moving_nodes {
-            dirichlet.push(Dirichlet {
-                dof: 3 * n,
-                per_unit_load: 0.0,
-            });
-            dirichlet.push(Dirichlet {
-                dof: 3 * n + 1,
-                per_unit_load: 1.0,
-            });
-        }
+        let dirichlet = oat_clamps(
+            mesh.nodes.len(),
+            &fixed_nodes,
+            &moving_nodes,
+            &mesh.unconnected_nodes(),
+        );
         let model = MembraneModel::new(
             mesh.nodes.clone(),
             mesh.triangles.clone(),
@@ -554,6 +523,27 @@ impl OatCase {
             _ => Zone::B,
         }
     }
+}
+
+/// The OAT's Dirichlet conditions, with the clamp displacement as the load
+/// parameter: every `z` fixed (in-plane), the fixed clamp fixed in `x` and
+/// `y`, the moving clamp fixed in `x` and driven in `+y`, and nodes that no
+/// triangle uses (reference points of a read mesh, which carry no
+/// stiffness) fixed so the tangent stays regular.
+pub fn oat_clamps(
+    nodes: usize,
+    fixed: &[usize],
+    moving: &[usize],
+    unconnected: &[usize],
+) -> Vec<Dirichlet> {
+    let mut conditions: Vec<Dirichlet> = (0..nodes).map(|n| Dirichlet::fixed(n, 2)).collect();
+    for &n in fixed.iter().chain(unconnected) {
+        conditions.extend([Dirichlet::fixed(n, 0), Dirichlet::fixed(n, 1)]);
+    }
+    for &n in moving {
+        conditions.extend([Dirichlet::fixed(n, 0), Dirichlet::driven(n, 1, 1.0)]);
+    }
+    conditions
 }
 
 fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {

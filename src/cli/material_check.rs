@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::material::diagnostics::{SampleRanges, StateSampler, fd_check, fd_step};
+use crate::material::diagnostics::{SampleRanges, StateSampler, fd_check, stencil_on_one_branch};
 use crate::material::{FibreFrame, Invariants, Material, MaterialSpec};
 
 /// Outcome of a diagnostic run.
@@ -66,15 +66,11 @@ pub fn run_check(spec: &MaterialSpec, states: usize, seed: u64) -> CheckReport {
         let (c, angle) = sampler.sample();
         let d = sampler.direction();
         let frame = FibreFrame::from_angle(angle);
-        let h = fd_step(&c);
-        let here = branch_labels(material, &c, &frame);
-        if [-h, -0.5 * h, 0.5 * h, h]
-            .iter()
-            .any(|s| branch_labels(material, &(c + *s * d), &frame) != here)
-        {
+        if !stencil_on_one_branch(material, &c, &frame, &d) {
             report.straddling += 1;
             continue;
         }
+        let here = branch_labels(material, &c, &frame);
         report.checked += 1;
         match fd_check(material, &c, &frame, &d) {
             Ok(check) => {

@@ -26,11 +26,7 @@ const REJECTED: &[&str] = &[
 
 /// Reads an Abaqus `.inp` file (see [`parse_inp`]).
 pub fn read_inp(path: &Path) -> Result<Mesh, MeshError> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| MeshError::Io {
-        file: file.clone(),
-        reason: e.to_string(),
-    })?;
+    let (text, file) = super::read_text(path)?;
     parse_inp(&text, &file)
 }
 

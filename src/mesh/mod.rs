@@ -480,6 +480,17 @@ fn lookup_set<'a>(sets: &'a BTreeMap<String, Vec<usize>>, name: &str) -> Option<
 }
 
 /// Sorts and deduplicates every set of a map (readers' final step).
+/// Reads a mesh file as text (lossy: a binary file keeps its ASCII header,
+/// so a reader can reject it by name rather than as invalid UTF-8).
+pub(crate) fn read_text(path: &std::path::Path) -> Result<(String, String), MeshError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| MeshError::Io {
+        file: file.clone(),
+        reason: e.to_string(),
+    })?;
+    Ok((String::from_utf8_lossy(&bytes).into_owned(), file))
+}
+
 pub(crate) fn normalise_sets(sets: &mut BTreeMap<String, Vec<usize>>) {
     for members in sets.values_mut() {
         members.sort_unstable();

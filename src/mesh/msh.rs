@@ -21,14 +21,7 @@ use super::{Mesh, MeshError, normalise_sets};
 /// Reads a Gmsh `.msh` 4.1 ASCII file (see [`parse_msh`]). Binary files are
 /// recognised from their header and rejected with a clear message.
 pub fn read_msh(path: &Path) -> Result<Mesh, MeshError> {
-    let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| MeshError::Io {
-        file: file.clone(),
-        reason: e.to_string(),
-    })?;
-    // Lossy: a binary file still shows its ASCII header and is then
-    // rejected by name rather than as invalid UTF-8.
-    let text = String::from_utf8_lossy(&bytes);
+    let (text, file) = super::read_text(path)?;
     parse_msh(&text, &file)
 }
 

@@ -259,33 +259,33 @@ fn write_f64_rows(out: &mut impl Write, rows: &[[f64; 3]]) -> io::Result<()> {
 
 fn write_field(out: &mut impl Write, f: &Field) -> io::Result<()> {
     let name = xml_escape(f.name);
+    // `<DataArray type=… Name=…{extra} format="ascii">`
+    let open = |out: &mut dyn Write, ty: &str, name: &str, extra: &str| {
+        writeln!(
+            out,
+            r#"        <DataArray type="{ty}" Name="{name}"{extra} format="ascii">"#
+        )
+    };
     match f.data {
         FieldData::Scalar(v) => {
-            writeln!(
-                out,
-                r#"        <DataArray type="Float64" Name="{name}" format="ascii">"#
-            )?;
+            open(out, "Float64", &name, "")?;
             write_values(out, v.iter(), 6, |o, x| write!(o, "{x:?}"))?;
         }
         FieldData::Vector3(v) => {
-            writeln!(
-                out,
-                r#"        <DataArray type="Float64" Name="{name}" NumberOfComponents="3" format="ascii">"#
-            )?;
+            open(out, "Float64", &name, r#" NumberOfComponents="3""#)?;
             write_f64_rows(out, v)?;
         }
         FieldData::SymTensor2(v) => {
-            writeln!(
+            open(
                 out,
-                r#"        <DataArray type="Float64" Name="{name}{SYM_TENSOR2_SUFFIX}" NumberOfComponents="3" ComponentName0="xx" ComponentName1="yy" ComponentName2="xy" format="ascii">"#
+                "Float64",
+                &format!("{name}{SYM_TENSOR2_SUFFIX}"),
+                r#" NumberOfComponents="3" ComponentName0="xx" ComponentName1="yy" ComponentName2="xy""#,
             )?;
             write_f64_rows(out, v)?;
         }
         FieldData::Int(v) => {
-            writeln!(
-                out,
-                r#"        <DataArray type="Int32" Name="{name}" format="ascii">"#
-            )?;
+            open(out, "Int32", &name, "")?;
             write_values(out, v.iter(), 12, |o, x| write!(o, "{x}"))?;
         }
     }

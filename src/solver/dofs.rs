@@ -12,6 +12,21 @@ pub struct Dirichlet {
     pub per_unit_load: f64,
 }
 
+impl Dirichlet {
+    /// `u = 0` for `component` (0, 1, 2 = x, y, z) of `node`.
+    pub fn fixed(node: usize, component: usize) -> Self {
+        Self::driven(node, component, 0.0)
+    }
+
+    /// `u = per_unit_load · λ` for `component` of `node`.
+    pub fn driven(node: usize, component: usize, per_unit_load: f64) -> Self {
+        Self {
+            dof: 3 * node + component,
+            per_unit_load,
+        }
+    }
+}
+
 /// The split of the dofs into free unknowns and constrained ones.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DofMap {
