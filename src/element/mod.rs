@@ -2,6 +2,8 @@
 //! [`crate::material::MembraneMaterial`] and know nothing of a specific law,
 //! of meshes or of solvers; they allocate nothing and do no I/O.
 
+pub mod fibre_triangle;
 pub mod membrane;
 
+pub use fibre_triangle::FibreTriangle;
 pub use membrane::{MembraneKinematics, MembraneReference, MembraneTangent};

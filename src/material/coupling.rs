@@ -35,7 +35,7 @@ impl Coupling {
     /// With `u = 1 − I11` and `q = s11 u^e11`: `k′ = (1 − k_min) e^(−q) q′`,
     /// `k″ = (1 − k_min) e^(−q) (q′² − q″)`, `q′ = s11 e11 u^(e11−1)`,
     /// `q″ = s11 e11 (e11 − 1) u^(e11−2)`.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, i11: f64) -> CouplingValue {
         if i11 >= 1.0 {
             return CouplingValue {

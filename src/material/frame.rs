@@ -47,6 +47,12 @@ impl FibreFrame {
         Self::from_unit(Vector2::new(c, s))
     }
 
+    /// The frame with the rovings along the first reference axis:
+    /// `a0 = E1`, `b0 = E2`, so that `C = [I4, I8, I6]`.
+    pub fn aligned() -> Self {
+        Self::from_unit(Vector2::new(1.0, 0.0))
+    }
+
     /// The frame of a roving direction given as any non-zero vector; `None`
     /// for a zero or non-finite vector.
     pub fn from_direction(direction: Vector2<f64>) -> Option<Self> {

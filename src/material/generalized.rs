@@ -115,8 +115,38 @@ impl GeneralizedTerm {
         }
     }
 
+    /// `f(x)` alone at `x ≥ 0` (Eq. 12), the same value as
+    /// [`GeneralizedTerm::eval`] gives, at the cost of one `expm1`.
+    #[inline(always)]
+    pub fn stress(&self, x: f64) -> f64 {
+        let mut stress = if x < self.x_t {
+            self.c_ini * x
+        } else {
+            let t = self
+                .transition
+                .expect("x_t is finite only with a transition");
+            let y = x - self.x_t;
+            let (_, one_minus_decay) = decay_pair(self.rate * y);
+            t.s_ini + (t.c_mid * y + t.delta_s_mid) * one_minus_decay
+        };
+        if let Some(lock) = self.lock
+            && x >= lock.i_lock
+        {
+            let d = x - lock.i_lock;
+            stress += lock.c_lock * d * d;
+        }
+        stress
+    }
+
+    /// `(G(x), f(x))`: [`GeneralizedTerm::eval`] without `f′`.
+    #[inline(always)]
+    pub fn energy_stress(&self, x: f64) -> (f64, f64) {
+        let value = self.eval(x);
+        (value.energy, value.stress)
+    }
+
     /// `f(x)`, `f′(x)` and `G(x)` at `x ≥ 0` (Eq. 12 and its integral).
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, x: f64) -> TermValue {
         let mut value = if x < self.x_t {
             TermValue {
@@ -132,15 +162,14 @@ impl GeneralizedTerm {
             let c = self.rate;
             let y = x - self.x_t;
             let z = c * y;
-            let decay = (-z).exp();
-            let one_minus_decay = -(-z).exp_m1();
+            let (decay, one_minus_decay) = decay_pair(z);
             let amplitude = t.c_mid * y + t.delta_s_mid;
             TermValue {
                 energy: 0.5 * self.c_ini * self.x_t * self.x_t
                     + (t.s_ini + t.delta_s_mid) * y
                     + 0.5 * t.c_mid * y * y
                     - t.delta_s_mid * one_minus_decay / c
-                    - t.c_mid * one_minus_decay_times_one_plus(z) / (c * c),
+                    - t.c_mid * one_minus_decay_times_one_plus(z, decay, one_minus_decay) / (c * c),
                 stress: t.s_ini + amplitude * one_minus_decay,
                 modulus: t.c_mid * one_minus_decay + amplitude * c * decay,
             }
@@ -157,10 +186,26 @@ impl GeneralizedTerm {
     }
 }
 
+/// `(e^(−z), 1 − e^(−z))` for `z ≥ 0` from one transcendental call, each to
+/// a few ulps: above `ln 2`, `e^(−z) ≤ ½` and `1 − e^(−z)` loses nothing;
+/// below, `expm1` gives `1 − e^(−z) ≤ ½` and `e^(−z) = 1 − that` is exact
+/// to round-off.
+#[inline(always)]
+fn decay_pair(z: f64) -> (f64, f64) {
+    if z > std::f64::consts::LN_2 {
+        let decay = (-z).exp();
+        (decay, 1.0 - decay)
+    } else {
+        let one_minus_decay = -(-z).exp_m1();
+        (1.0 - one_minus_decay, one_minus_decay)
+    }
+}
+
 /// `1 − e^(−z)(1 + z)` for `z ≥ 0` without cancellation at small `z`:
-/// the series `Σ_{n≥2} (−1)ⁿ (n−1) zⁿ / n!` below 0.1, the closed form above.
+/// the series `Σ_{n≥2} (−1)ⁿ (n−1) zⁿ / n!` below 0.1, the closed form
+/// `(1 − e^(−z)) − z e^(−z)` above, from the pair of [`decay_pair`].
 #[inline]
-fn one_minus_decay_times_one_plus(z: f64) -> f64 {
+fn one_minus_decay_times_one_plus(z: f64, decay: f64, one_minus_decay: f64) -> f64 {
     if z < 0.1 {
         // Terms n = 2..=9; the first omitted term is below 1e-10 · z²/2.
         let mut term = z * z / 2.0; // zⁿ/n! for n = 2
@@ -173,7 +218,7 @@ fn one_minus_decay_times_one_plus(z: f64) -> f64 {
         }
         sum
     } else {
-        -(-z).exp_m1() - z * (-z).exp()
+        one_minus_decay - z * decay
     }
 }
 
@@ -185,7 +230,8 @@ mod tests {
     fn series_matches_closed_form_where_both_are_accurate() {
         for &z in &[0.02_f64, 0.05, 0.0999] {
             let closed = 1.0 - (-z).exp() * (1.0 + z);
-            let series = one_minus_decay_times_one_plus(z);
+            let (decay, one_minus_decay) = decay_pair(z);
+            let series = one_minus_decay_times_one_plus(z, decay, one_minus_decay);
             // The closed form loses about eps/z² relative accuracy here.
             assert!((closed - series).abs() <= 1e-12 * series.abs().max(1e-300) / (z * z));
         }

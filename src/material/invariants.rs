@@ -50,6 +50,33 @@ impl Invariants {
         })
     }
 
+    /// The invariants of `C` given in the fibre basis (`a0 = E1`,
+    /// `b0 = E2`): `I4 = C11`, `I8 = C22`, `I6 = C12`, with the checks of
+    /// [`Invariants::new`].
+    ///
+    /// # Errors
+    /// As [`Invariants::new`].
+    #[inline(always)]
+    pub fn in_fibre_basis(c: &Sym2) -> Result<Self, MaterialError> {
+        if !(c[0].is_finite() && c[1].is_finite() && c[2].is_finite()) {
+            return Err(MaterialError::NonFinite);
+        }
+        let (i4, i8, i6) = (c[0], c[1], c[2]);
+        if i4 <= 0.0 {
+            return Err(MaterialError::CollapsedRovings { i4 });
+        }
+        let det = i4 * i8 - i6 * i6;
+        if det <= 0.0 {
+            return Err(MaterialError::NonPositiveDeterminant { det });
+        }
+        Ok(Self {
+            i4,
+            i6,
+            i8,
+            i11: (det / i4).sqrt(),
+        })
+    }
+
     /// `det C = I4 I11²` (equal to `I4 I8 − I6²`).
     pub fn det_c(&self) -> f64 {
         self.i4 * self.i11 * self.i11

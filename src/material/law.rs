@@ -42,6 +42,18 @@ pub trait MembraneMaterial: Send + Sync {
     /// As [`MembraneMaterial::energy`].
     fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError>;
 
+    /// `S` alone, for `C` given in the fibre basis (`a0 = E1`, `b0 = E2`,
+    /// so `C = [I4, I8, I6]`), with `S` in that basis: the explicit solver's
+    /// force pass, which needs neither the energy nor a frame. The default
+    /// goes through [`MembraneMaterial::stress`] with the aligned frame.
+    ///
+    /// # Errors
+    /// As [`MembraneMaterial::energy`].
+    #[inline]
+    fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
+        self.stress(c, &FibreFrame::aligned()).map(|s| s.stress)
+    }
+
     /// `W`, `S` and `ℂ = 4 ∂²W/∂C∂C`.
     ///
     /// # Errors

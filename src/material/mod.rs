@@ -70,6 +70,14 @@ impl MembraneMaterial for Material {
         }
     }
 
+    #[inline(always)]
+    fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
+        match self {
+            Material::UdNcf(law) => law.fibre_stress(c),
+            Material::OrthotropicSvk(law) => law.fibre_stress(c),
+        }
+    }
+
     #[inline]
     fn stress_tangent(
         &self,

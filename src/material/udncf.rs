@@ -84,12 +84,6 @@ impl UdNcf {
     /// Evaluates energy, gradient and (if `with_hessian`) Hessian in
     /// `p = (I4, I6, I8)`, applying the chain rule through `I11(p)`.
     ///
-    /// Partial derivatives at fixed `I11` are collected first
-    /// (`W_,k`, `W_,kl`, `W_,11`, `W_,1111`, `W_,8 11`), then
-    /// `g_k = W_,k + W_,11 I11_,k` and
-    /// `H_kl = W_,kl + W_,k11 I11_,l + W_,l11 I11_,k + W_,1111 I11_,k I11_,l
-    /// + W_,11 I11_,kl`.
-    ///
     /// # Errors
     /// Degenerate states (see [`Invariants::new`]).
     #[inline]
@@ -99,22 +93,35 @@ impl UdNcf {
         frame: &FibreFrame,
         with_hessian: bool,
     ) -> Result<UdNcfPoint, MaterialError> {
-        let inv = Invariants::new(c, frame)?;
+        Ok(self.evaluate_invariants(Invariants::new(c, frame)?, with_hessian))
+    }
+
+    /// The law at given invariants: energy, gradient and, if
+    /// `with_hessian`, the Hessian (zero otherwise).
+    ///
+    /// Partial derivatives at fixed `I11` are collected first
+    /// (`W_,k`, `W_,kl`, `W_,11`, `W_,1111`, `W_,8 11`), then
+    /// `g_k = W_,k + W_,11 I11_,k` and
+    /// `H_kl = W_,kl + W_,k11 I11_,l + W_,l11 I11_,k + W_,1111 I11_,k I11_,l
+    /// + W_,11 I11_,kl` (Eq. A.4–A.7).
+    #[inline]
+    pub fn evaluate_invariants(&self, inv: Invariants, with_hessian: bool) -> UdNcfPoint {
         let mut gradient = [0.0; 3];
         let mut hessian = [[0.0; 3]; 3];
         // Partial derivatives with respect to I11 at fixed (I4, I6, I8).
         let mut w_11 = 0.0;
         let mut w_11_11 = 0.0;
         let mut w_8_11 = 0.0;
+        let term = |w: &GeneralizedTerm, x: f64| w.eval(x);
 
         // W4 = G4(|I4 − 1|): dW4/dI4 = sgn(I4 − 1) f4 (erratum 2).
         let d4 = inv.i4 - 1.0;
-        let t4 = self.w4.eval(d4.abs());
+        let t4 = term(&self.w4, d4.abs());
         gradient[0] = t4.stress.copysign(d4);
         hessian[0][0] = t4.modulus;
 
         // W6 = G6(|I6|).
-        let t6 = self.w6.eval(inv.i6.abs());
+        let t6 = term(&self.w6, inv.i6.abs());
         gradient[1] = t6.stress.copysign(inv.i6);
         hessian[1][1] = t6.modulus;
 
@@ -124,7 +131,7 @@ impl UdNcf {
         // initial stiffnesses, so the undeformed state has a regular tangent.
         let mut w11 = 0.0;
         if inv.i11 <= 1.0 + KINK_TOLERANCE {
-            let t11 = self.w11.eval((1.0 - inv.i11).max(0.0));
+            let t11 = term(&self.w11, (1.0 - inv.i11).max(0.0));
             w11 = t11.energy;
             w_11 -= t11.stress;
             w_11_11 += t11.modulus;
@@ -163,13 +170,13 @@ impl UdNcf {
         }
 
         let contributions = [t4.energy, t6.energy, w8, w11];
-        Ok(UdNcfPoint {
+        UdNcfPoint {
             invariants: inv,
             energy: contributions.iter().sum(),
             contributions,
             gradient,
             hessian,
-        })
+        }
     }
 }
 
@@ -183,6 +190,50 @@ impl MembraneMaterial for UdNcf {
         };
         check_finite(&state)?;
         Ok(state)
+    }
+
+    /// The force pass's path, straight-line: the gradient of
+    /// [`UdNcf::evaluate_invariants`] with the energy of W8 only where the
+    /// coupling needs it (`I8 ≥ 1`, `I11 < 1`), one transcendental per
+    /// active term and the chain rule through `I11` written out:
+    /// `∂I11/∂(I4, I6, I8) = (r², −2r, 1) / (2 I11)`, `r = I6/I4`.
+    #[inline(always)]
+    fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
+        let inv = Invariants::in_fibre_basis(c)?;
+        let d4 = inv.i4 - 1.0;
+        let mut g4 = self.w4.stress(d4.abs()).copysign(d4);
+        let mut g6 = self.w6.stress(inv.i6.abs()).copysign(inv.i6);
+        let mut g8 = 0.0;
+        let mut w_11 = 0.0;
+        if inv.i11 <= 1.0 + KINK_TOLERANCE {
+            w_11 = -self.w11.stress((1.0 - inv.i11).max(0.0));
+        }
+        if inv.i8 >= 1.0 - KINK_TOLERANCE {
+            let x8 = (inv.i8 - 1.0).max(0.0);
+            if inv.i11 < 1.0 {
+                let (energy8, stress8) = self.w8.energy_stress(x8);
+                let k = self.coupling.eval(inv.i11);
+                g8 = k.k * stress8;
+                w_11 += k.dk * energy8;
+            } else {
+                g8 = self.w8.stress(x8);
+            }
+        }
+        if w_11 != 0.0 {
+            let r = inv.i6 / inv.i4;
+            let h = 0.5 * w_11 / inv.i11;
+            g4 += r * r * h;
+            g6 -= 2.0 * r * h;
+            g8 += h;
+        }
+        // S = 2 (g4 N4 + g6 N6 + g8 N8) with N4 = E1⊗E1, N8 = E2⊗E2,
+        // N6 = sym(E1⊗E2).
+        let stress = Sym2::new(2.0 * g4, 2.0 * g8, g6);
+        if stress.iter().all(|s| s.is_finite()) {
+            Ok(stress)
+        } else {
+            Err(MaterialError::NonFiniteResponse)
+        }
     }
 
     #[inline]

@@ -1,0 +1,493 @@
+//! Explicit dynamics: central differences with lumped masses.
+//!
+//! The membrane `M ü + α M u̇ + f_int(u) = 0` with prescribed dofs
+//! `u_d = p_d λ(t)` is integrated in leapfrog form,
+//!
+//! ```text
+//! v_{n+½} = ((1 − α h/2) v_{n−½} + h M⁻¹ (−f_int(u_n))) / (1 + α h/2),   h = (Δt_{n−½} + Δt_{n+½})/2
+//! u_{n+1} = u_n + Δt_{n+½} v_{n+½}
+//! ```
+//!
+//! with `M` lumped from the element masses `ρ t A0 / 3` per node, `Δt` a
+//! safety factor times the critical step bounded element by element from the
+//! current tangent (or fixed), and `λ(t)` a smooth step or a ramp. Each step
+//! makes two parallel passes: the element pass writes every triangle's force
+//! into its own slot; the node pass gathers each node's force from its
+//! triangles in a fixed order and updates the node. Nothing is scattered,
+//! so no two tasks write the same place, and every sum has a fixed order:
+//! results are the same, bit for bit, for any number of threads. The time
+//! loop allocates nothing. See `docs/explicit.md`.
+//!
+//! Energies at every output: internal `Σ t A0 W`, kinetic `½ Σ m v²` of the
+//! free dofs, external work `∫ R dλ` (trapezoidal, per step) with `R` the
+//! generalised reaction, damping `∫ α m v² dt`; the balance error is
+//! `IE + KE + D − W − (IE + KE)₀`.
+
+mod params;
+pub mod system;
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+pub use params::{Amplitude, ExplicitParameters, SettingError, TimeStepControl};
+pub use system::{MassSummary, NODE_BLOCK, SetupError};
+
+use super::dofs::DofMap;
+use super::model::MembraneModel;
+use super::newton::RunStatus;
+pub use system::{ExplicitSystem, Update};
+
+/// Displacement and velocity of every dof (3 per node).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExplicitState {
+    /// Displacement `u` [mm].
+    pub u: Vec<f64>,
+    /// Velocity [mm/s]: the initial velocity on entry, the last half-step
+    /// velocity `v_{n−½}` on return.
+    pub v: Vec<f64>,
+}
+
+impl ExplicitState {
+    /// At rest in the reference configuration.
+    pub fn at_rest(dofs: usize) -> Self {
+        Self {
+            u: vec![0.0; dofs],
+            v: vec![0.0; dofs],
+        }
+    }
+}
+
+/// The energies at one instant [N·mm = mJ].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Energies {
+    /// Internal (strain) energy `Σ t A0 W`.
+    pub internal: f64,
+    /// Kinetic energy `½ Σ m v²` of the free dofs.
+    pub kinetic: f64,
+    /// Work of the prescribed motion on the membrane, `∫ R dλ`.
+    pub external_work: f64,
+    /// Energy dissipated by the mass-proportional damping.
+    pub damping: f64,
+    /// `IE + KE + D − W − (IE + KE)₀`: zero for an exact integration.
+    pub balance_error: f64,
+    /// `|balance_error|` over the largest of `W`, `IE + KE + D` and
+    /// `(IE + KE)₀` (zero when all vanish).
+    pub relative_balance_error: f64,
+}
+
+impl Energies {
+    fn balance(&mut self, initial: f64) {
+        self.balance_error =
+            self.internal + self.kinetic + self.damping - self.external_work - initial;
+        let scale = self
+            .external_work
+            .abs()
+            .max(self.internal + self.kinetic + self.damping)
+            .max(initial.abs());
+        self.relative_balance_error = if scale > 0.0 {
+            self.balance_error.abs() / scale
+        } else {
+            0.0
+        };
+    }
+
+    /// `KE / IE`, or 0 while `IE = 0`.
+    pub fn kinetic_ratio(&self) -> f64 {
+        if self.internal > 0.0 {
+            self.kinetic / self.internal
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The state at one output instant.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ExplicitRecord {
+    /// Time increments taken so far.
+    pub increment: usize,
+    /// Time [s].
+    pub time: f64,
+    /// Load parameter `λ(t)` (a clamp displacement, say) [mm].
+    pub load: f64,
+    /// Generalised reaction `R = Σ_d p_d f_int,d` (the clamp force) [N].
+    pub reaction: f64,
+    /// The time step in use [s].
+    pub time_step: f64,
+    /// Energies [N·mm].
+    pub energies: Energies,
+}
+
+/// Wall-clock split of an explicit run [s].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ExplicitTimings {
+    /// Set-up: element data, adjacency, masses, mass scaling.
+    pub setup: f64,
+    /// Element passes (internal forces).
+    pub element_pass: f64,
+    /// Node passes (gather and update).
+    pub node_pass: f64,
+    /// Stable-step estimates.
+    pub time_step_estimates: f64,
+    /// Energies and reactions at outputs, and the caller's output work.
+    pub outputs: f64,
+}
+
+/// Result of an explicit run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExplicitResult {
+    /// Completion.
+    pub status: RunStatus,
+    /// One record per output.
+    pub records: Vec<ExplicitRecord>,
+    /// Time increments.
+    pub increments: usize,
+    /// `increments × triangles`.
+    pub element_cycles: u64,
+    /// The estimated critical step at the start, before the safety factor [s].
+    pub initial_critical_time_step: f64,
+    /// Smallest and largest step taken [s] (outputs may shorten a step).
+    pub time_step_range: (f64, f64),
+    /// Masses.
+    pub mass: MassSummary,
+    /// Largest `KE / IE` once `λ` passed 10 % of its final value.
+    pub max_kinetic_ratio: f64,
+    /// Largest relative energy-balance error over the outputs.
+    pub max_relative_balance_error: f64,
+    /// Warnings (a run that is not quasi-static, …).
+    pub warnings: Vec<String>,
+    /// Time split.
+    pub timings: ExplicitTimings,
+    /// rayon threads used.
+    pub threads: usize,
+}
+
+/// Why an explicit run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExplicitError {
+    /// A bad setting.
+    #[error("explicit solver: {0}")]
+    Setting(#[from] SettingError),
+    /// The model cannot be integrated.
+    #[error("explicit solver: {0}")]
+    Setup(#[from] SetupError),
+    /// The thread pool could not be built.
+    #[error("explicit solver: cannot start the worker threads: {0}")]
+    Threads(String),
+    /// The state vectors do not match the model.
+    #[error("explicit solver: state has {given} dofs, the model {expected}")]
+    StateSize {
+        /// Dofs of the model.
+        expected: usize,
+        /// Dofs of the state.
+        given: usize,
+    },
+}
+
+/// Buffers of the time loop, allocated once.
+struct Buffers {
+    forces: Vec<[f64; 9]>,
+    internal: Vec<f64>,
+    element_energy: Vec<f64>,
+    partial: Vec<f64>,
+}
+
+/// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
+/// of `dofs` following `λ(t) = final_load · shape(t/T)`, calling `on_output`
+/// at each time of `output_times` (those in `(0, T]`, sorted; `T` is always
+/// one) with the record and the displacement.
+///
+/// # Errors
+/// Bad settings or a model that cannot start; a run that fails on the way is
+/// a result with [`RunStatus::Incomplete`] whose records stop at the last
+/// output before the failure.
+pub fn solve_explicit(
+    model: &MembraneModel,
+    dofs: &DofMap,
+    params: &ExplicitParameters,
+    final_load: f64,
+    output_times: &[f64],
+    state: &mut ExplicitState,
+    on_output: impl FnMut(&ExplicitRecord, &[f64]) + Send,
+) -> Result<ExplicitResult, ExplicitError> {
+    params.validate()?;
+    // The time loop runs on a worker of its own pool: its parallel passes
+    // then start without waking a sleeping caller thread every pass.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(params.threads)
+        .build()
+        .map_err(|e| ExplicitError::Threads(e.to_string()))?;
+    pool.install(|| {
+        integrate(
+            model,
+            dofs,
+            params,
+            final_load,
+            output_times,
+            state,
+            on_output,
+        )
+    })
+}
+
+/// The body of [`solve_explicit`], inside its thread pool.
+fn integrate(
+    model: &MembraneModel,
+    dofs: &DofMap,
+    params: &ExplicitParameters,
+    final_load: f64,
+    output_times: &[f64],
+    state: &mut ExplicitState,
+    mut on_output: impl FnMut(&ExplicitRecord, &[f64]),
+) -> Result<ExplicitResult, ExplicitError> {
+    let start = Instant::now();
+    for given in [state.u.len(), state.v.len()] {
+        if given != dofs.total {
+            return Err(ExplicitError::StateSize {
+                expected: dofs.total,
+                given,
+            });
+        }
+    }
+    let (safety, update_interval) = match params.time_step {
+        TimeStepControl::Stable {
+            safety_factor,
+            update_interval,
+        } => (safety_factor, update_interval),
+        TimeStepControl::Fixed { .. } => (1.0, usize::MAX),
+    };
+    let system = ExplicitSystem::new(
+        model,
+        dofs,
+        params.density,
+        params.mass_scaling_target.map(|t| (t, safety)),
+        params.check_inversion,
+        &state.u,
+    )?;
+    let n_elements = system.elements.len();
+    let mut buffers = Buffers {
+        forces: vec![[0.0; 9]; n_elements],
+        internal: vec![0.0; dofs.total],
+        element_energy: vec![0.0; n_elements],
+        partial: vec![0.0; system.node_blocks()],
+    };
+    let mut times: Vec<f64> = output_times
+        .iter()
+        .copied()
+        .filter(|t| *t > 0.0 && *t < params.duration)
+        .collect();
+    times.push(params.duration);
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+
+    let u = &mut state.u;
+    let v = &mut state.v;
+    // Prescribed dofs at λ(0).
+    let load_at = |t: f64| final_load * params.load_fraction(t);
+    for &(dof, p) in &system.driven {
+        u[dof] = p * load_at(0.0);
+    }
+    system
+        .element_forces(u, &mut buffers.forces)
+        .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
+    let initial_critical = system
+        .critical_time_step(u)
+        .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
+    let stable_step = |critical: f64| match params.time_step {
+        TimeStepControl::Stable { .. } => safety * critical,
+        TimeStepControl::Fixed { time_step } => time_step,
+    };
+    let mut time_step = stable_step(initial_critical);
+    if !time_step.is_finite() {
+        return Err(ExplicitError::Setting(SettingError {
+            name: "time_step",
+            value: "inf".into(),
+            expected: "a stiff model (the estimated critical step is infinite)",
+        }));
+    }
+    let mut timings = ExplicitTimings {
+        setup: start.elapsed().as_secs_f64(),
+        ..Default::default()
+    };
+
+    // Energies at t = 0.
+    let mut energies = Energies::default();
+    let mut reaction = system.reaction(&buffers.forces);
+    let kinetic_and_internal = |system: &ExplicitSystem,
+                                buffers: &mut Buffers,
+                                u: &[f64],
+                                v: &[f64],
+                                half_step: f64|
+     -> Result<(f64, f64), super::assembly::ElementFailure> {
+        system.gather_with_kinetic(
+            &buffers.forces,
+            v,
+            half_step,
+            params.damping,
+            &mut buffers.internal,
+            &mut buffers.partial,
+        );
+        let kinetic: f64 = buffers.partial.iter().sum();
+        system.strain_energies(u, &mut buffers.element_energy)?;
+        let internal: f64 = buffers.element_energy.iter().sum();
+        Ok((kinetic, internal))
+    };
+    {
+        // At t = 0 the velocity is v_0 itself: no half step.
+        let (kinetic, internal) = kinetic_and_internal(&system, &mut buffers, u, v, 0.0)
+            .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
+        energies.kinetic = kinetic;
+        energies.internal = internal;
+    }
+    let initial_energy = energies.internal + energies.kinetic;
+
+    let mut records = Vec::with_capacity(times.len());
+    let mut warnings = Vec::new();
+    let mut time = 0.0;
+    let mut load = load_at(0.0);
+    let mut previous_step = 0.0;
+    let mut increments = 0usize;
+    let mut step_range = (f64::INFINITY, 0.0_f64);
+    let mut max_kinetic_ratio = 0.0_f64;
+    let mut max_balance = 0.0_f64;
+    let mut next_output = 0;
+    let mut last_output_load = load;
+    let ke_check_from = 0.1 * final_load.abs();
+
+    let status = loop {
+        let Some(&target) = times.get(next_output) else {
+            break RunStatus::Complete;
+        };
+        // Land exactly on the next output time.
+        let remaining = target - time;
+        let (dt, lands) = if remaining <= time_step {
+            (remaining, true)
+        } else {
+            (time_step, false)
+        };
+        let load_next = if lands {
+            load_at(target)
+        } else {
+            load_at(time + dt)
+        };
+        let clock = Instant::now();
+        system.update(
+            &buffers.forces,
+            u,
+            v,
+            &mut buffers.partial,
+            Update {
+                velocity_step: 0.5 * (previous_step + dt),
+                time_step: dt,
+                damping: params.damping,
+                load_next,
+            },
+        );
+        if params.damping > 0.0 {
+            energies.damping += buffers.partial.iter().sum::<f64>();
+        }
+        timings.node_pass += clock.elapsed().as_secs_f64();
+        time = if lands { target } else { time + dt };
+        previous_step = dt;
+        increments += 1;
+        step_range = (step_range.0.min(dt), step_range.1.max(dt));
+
+        let clock = Instant::now();
+        let pass = system.element_forces(u, &mut buffers.forces);
+        timings.element_pass += clock.elapsed().as_secs_f64();
+        if let Err(failure) = pass {
+            break RunStatus::Incomplete {
+                load_reached: last_output_load,
+                load_attempted: load_next,
+                reason: format!(
+                    "time increment {increments} (t = {time:.6e} s, load {load_next:.6}): {failure}"
+                ),
+            };
+        }
+        let new_reaction = system.reaction(&buffers.forces);
+        energies.external_work += 0.5 * (reaction + new_reaction) * (load_next - load);
+        reaction = new_reaction;
+        load = load_next;
+
+        if lands {
+            let clock = Instant::now();
+            let (kinetic, internal) =
+                match kinetic_and_internal(&system, &mut buffers, u, v, 0.5 * dt) {
+                    Ok(pair) => pair,
+                    Err(failure) => {
+                        break RunStatus::Incomplete {
+                            load_reached: last_output_load,
+                            load_attempted: load,
+                            reason: format!("output at t = {time:.6e} s: {failure}"),
+                        };
+                    }
+                };
+            energies.kinetic = kinetic;
+            energies.internal = internal;
+            energies.balance(initial_energy);
+            max_balance = max_balance.max(energies.relative_balance_error);
+            if load.abs() >= ke_check_from && final_load != 0.0 {
+                let ratio = energies.kinetic_ratio();
+                if ratio > params.kinetic_energy_warning
+                    && max_kinetic_ratio <= params.kinetic_energy_warning
+                {
+                    warnings.push(format!(
+                        "not quasi-static: kinetic energy {:.3e} N·mm is {:.2} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {:.2} % warning level; lower the loading speed or the mass scaling",
+                        energies.kinetic,
+                        100.0 * ratio,
+                        100.0 * params.kinetic_energy_warning
+                    ));
+                }
+                max_kinetic_ratio = max_kinetic_ratio.max(ratio);
+            }
+            let record = ExplicitRecord {
+                increment: increments,
+                time,
+                load,
+                reaction,
+                time_step,
+                energies,
+            };
+            records.push(record);
+            on_output(&record, u);
+            last_output_load = load;
+            next_output += 1;
+            timings.outputs += clock.elapsed().as_secs_f64();
+        }
+
+        if increments.is_multiple_of(update_interval) {
+            let clock = Instant::now();
+            match system.critical_time_step(u) {
+                Ok(critical) => time_step = stable_step(critical),
+                Err(failure) => {
+                    break RunStatus::Incomplete {
+                        load_reached: last_output_load,
+                        load_attempted: load,
+                        reason: format!("stable-step estimate at t = {time:.6e} s: {failure}"),
+                    };
+                }
+            }
+            timings.time_step_estimates += clock.elapsed().as_secs_f64();
+        }
+    };
+
+    Ok(ExplicitResult {
+        status,
+        records,
+        increments,
+        element_cycles: increments as u64 * n_elements as u64,
+        initial_critical_time_step: initial_critical,
+        time_step_range: if increments > 0 {
+            step_range
+        } else {
+            (0.0, 0.0)
+        },
+        mass: system.mass,
+        max_kinetic_ratio,
+        max_relative_balance_error: max_balance,
+        warnings,
+        timings,
+        threads: rayon::current_num_threads(),
+    })
+}

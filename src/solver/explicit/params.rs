@@ -1,0 +1,202 @@
+//! Settings of the explicit solver, their validation and the load amplitude.
+
+use serde::Serialize;
+
+/// The shape of the prescribed motion over the run: the load parameter is
+/// `λ(t) = λ_final · shape(t / T)` for `0 ≤ t ≤ T`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Amplitude {
+    /// `shape(τ) = τ³ (10 − 15 τ + 6 τ²)`: zero velocity and acceleration at
+    /// both ends (ABAQUS' `SMOOTH STEP`); peak rate 1.875 × the mean.
+    SmoothStep,
+    /// `shape(τ) = τ`: constant rate, with a velocity jump at the start.
+    Linear,
+}
+
+impl Amplitude {
+    /// `shape(τ)`, with `τ` clamped to `[0, 1]`.
+    pub fn shape(self, tau: f64) -> f64 {
+        let tau = tau.clamp(0.0, 1.0);
+        match self {
+            Amplitude::SmoothStep => tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau)),
+            Amplitude::Linear => tau,
+        }
+    }
+
+    /// The `τ ∈ [0, 1]` at which `shape(τ) = fraction` (both shapes rise
+    /// monotonically), by bisection to round-off.
+    pub fn inverse(self, fraction: f64) -> f64 {
+        let fraction = fraction.clamp(0.0, 1.0);
+        match self {
+            Amplitude::Linear => fraction,
+            Amplitude::SmoothStep => {
+                let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+                for _ in 0..80 {
+                    let mid = 0.5 * (lo + hi);
+                    if self.shape(mid) < fraction {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                0.5 * (lo + hi)
+            }
+        }
+    }
+
+    /// The name used in case files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Amplitude::SmoothStep => "smooth-step",
+            Amplitude::Linear => "linear",
+        }
+    }
+}
+
+/// How the time step is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum TimeStepControl {
+    /// `safety_factor × 2/ω_max`, with `ω_max` bounded element by element
+    /// from the current tangent (see
+    /// [`crate::element::FibreTriangle::max_frequency_squared`]) and
+    /// re-estimated every `update_interval` steps.
+    Stable {
+        /// Fraction of the estimated critical step, in `(0, 1]`.
+        safety_factor: f64,
+        /// Steps between two estimates, at least 1.
+        update_interval: usize,
+    },
+    /// A fixed step [s], whatever the stability estimate says (for studies
+    /// of the stability limit; the estimate is still reported).
+    Fixed {
+        /// The step [s].
+        time_step: f64,
+    },
+}
+
+/// Everything the explicit solver needs besides the model and the loading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ExplicitParameters {
+    /// Mass density `ρ` [t/mm³] (areal mass / thickness).
+    pub density: f64,
+    /// Duration `T` of the prescribed motion [s].
+    pub duration: f64,
+    /// Shape of the prescribed motion.
+    pub amplitude: Amplitude,
+    /// Time-step choice.
+    pub time_step: TimeStepControl,
+    /// Mass scaling: elements whose stable step is below this target [s]
+    /// get their density raised so that it reaches it. `None`: no scaling.
+    pub mass_scaling_target: Option<f64>,
+    /// Mass-proportional damping coefficient `α` [1/s]: a force `−α m v` on
+    /// every free dof. Zero: undamped.
+    pub damping: f64,
+    /// Warn when the kinetic energy exceeds this fraction of the internal
+    /// energy (checked once `λ` passes 10 % of its final value).
+    pub kinetic_energy_warning: f64,
+    /// Reject triangles that turn over in their plane (planar models).
+    pub check_inversion: bool,
+    /// Worker threads; 0 takes rayon's default (all cores, or
+    /// `RAYON_NUM_THREADS`). Results do not depend on it.
+    pub threads: usize,
+}
+
+impl ExplicitParameters {
+    /// Defaults for a run of duration `duration` [s] at density `density`
+    /// [t/mm³]: smooth step, safety factor 0.9 updated every 10 steps, no
+    /// mass scaling, no damping, warning at KE > 1 % of IE, all cores.
+    pub fn new(density: f64, duration: f64) -> Self {
+        Self {
+            density,
+            duration,
+            amplitude: Amplitude::SmoothStep,
+            time_step: TimeStepControl::Stable {
+                safety_factor: 0.9,
+                update_interval: 100,
+            },
+            mass_scaling_target: None,
+            damping: 0.0,
+            kinetic_energy_warning: 0.01,
+            check_inversion: true,
+            threads: 0,
+        }
+    }
+
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// The first bad setting, by name, with its value and what was expected.
+    pub fn validate(&self) -> Result<(), SettingError> {
+        let positive = |name: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(SettingError {
+                    name,
+                    value: format!("{value}"),
+                    expected: "a finite number > 0",
+                })
+            }
+        };
+        positive("density", self.density)?;
+        positive("duration", self.duration)?;
+        match self.time_step {
+            TimeStepControl::Stable {
+                safety_factor,
+                update_interval,
+            } => {
+                if !(safety_factor > 0.0 && safety_factor <= 1.0) {
+                    return Err(SettingError {
+                        name: "safety_factor",
+                        value: format!("{safety_factor}"),
+                        expected: "a factor in (0, 1]",
+                    });
+                }
+                if update_interval == 0 {
+                    return Err(SettingError {
+                        name: "time_step_update_interval",
+                        value: "0".into(),
+                        expected: "at least 1 step",
+                    });
+                }
+            }
+            TimeStepControl::Fixed { time_step } => positive("time_step", time_step)?,
+        }
+        if let Some(target) = self.mass_scaling_target {
+            positive("mass_scaling_time_step", target)?;
+        }
+        if !(self.damping.is_finite() && self.damping >= 0.0) {
+            return Err(SettingError {
+                name: "damping",
+                value: format!("{}", self.damping),
+                expected: "a finite number ≥ 0 [1/s]",
+            });
+        }
+        positive("kinetic_energy_warning", self.kinetic_energy_warning)?;
+        Ok(())
+    }
+
+    /// `λ(t) / λ_final`.
+    pub fn load_fraction(&self, time: f64) -> f64 {
+        self.amplitude.shape(time / self.duration)
+    }
+
+    /// The time at which `λ(t) / λ_final = fraction`.
+    pub fn time_of_load_fraction(&self, fraction: f64) -> f64 {
+        self.duration * self.amplitude.inverse(fraction)
+    }
+}
+
+/// A bad explicit setting.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{name} = {value}: expected {expected}")]
+pub struct SettingError {
+    /// The setting (its case-file key).
+    pub name: &'static str,
+    /// The value given.
+    pub value: String,
+    /// What was expected.
+    pub expected: &'static str,
+}
