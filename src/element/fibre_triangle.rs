@@ -16,10 +16,16 @@
 //! ```
 //!
 //! the same `t A0 B_aᵀ S` as [`super::membrane`], written without `B`.
+//!
+//! [`FibreTriangles`] holds `N` triangles lane by lane (structure of arrays)
+//! and computes their forces together, with the law on lanes: the same
+//! expressions, so that the elements' exponentials, divisions and square
+//! roots run side by side in SIMD registers.
 
-use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2};
 
 use super::membrane::MembraneReference;
+use crate::material::lanes::Real;
 use crate::material::{FibreFrame, MaterialError, MembraneMaterial, Sym2};
 
 /// One triangle in its fibre basis (reference data for the explicit solver).
@@ -232,6 +238,582 @@ fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 
 #[inline(always)]
 fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    let v = Vector3::from(*a).cross(&Vector3::from(*b));
-    [v.x, v.y, v.z]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// A law evaluated over a [`Real`] (one point or several at once), for
+/// [`FibreTriangles`].
+pub trait LaneStress<V: Real> {
+    /// `C` in the fibre basis `[C11, C22, C12]` per lane to `S` in that
+    /// basis and the lanes where the law accepts the state (where
+    /// [`MembraneMaterial::fibre_stress`] returns `Ok`, with the same `S`);
+    /// the stress of any other lane is meaningless.
+    fn stress_lanes(&self, c: &[V; 3]) -> ([V; 3], V::Mask);
+}
+
+/// `N` triangles lane by lane: the sixteen numbers of [`FibreTriangle`],
+/// each as `N` lanes (lane `l` is triangle `l`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FibreTriangles<const N: usize> {
+    /// `∇N_a` in the fibre basis [1/mm].
+    pub grad: [[[f64; N]; 2]; 3],
+    /// `a0` in global coordinates.
+    pub e1: [[f64; N]; 3],
+    /// `b0` in global coordinates.
+    pub e2: [[f64; N]; 3],
+    /// The unit reference normal `a0 × b0`.
+    pub normal: [[f64; N]; 3],
+    /// `t A0` [mm³].
+    pub volume: [f64; N],
+}
+
+/// Internal forces of several triangles (see
+/// [`FibreTriangles::internal_forces`]).
+#[derive(Clone, Copy)]
+pub struct FibreTriangleForces<V: Real> {
+    /// `f_a` node-major `[x0, y0, z0, x1, …]`, each component per lane [N].
+    pub force: [V; 9],
+    /// `(g1 × g2) · N0` per lane.
+    pub orientation: V,
+    /// The lanes the law accepted (where [`FibreTriangle::internal_force`]
+    /// returns `Ok`); the force of any other lane is meaningless.
+    pub admissible: V::Mask,
+}
+
+impl<const N: usize> FibreTriangles<N> {
+    /// Lane `l` from `triangle(l)`.
+    pub fn from_fn(triangle: impl Fn(usize) -> FibreTriangle) -> Self {
+        let t: [FibreTriangle; N] = std::array::from_fn(triangle);
+        let lanes = |f: &dyn Fn(&FibreTriangle) -> f64| std::array::from_fn(|l| f(&t[l]));
+        Self {
+            grad: std::array::from_fn(|a| std::array::from_fn(|i| lanes(&|t| t.grad[a][i]))),
+            e1: std::array::from_fn(|k| lanes(&|t| t.e1[k])),
+            e2: std::array::from_fn(|k| lanes(&|t| t.e2[k])),
+            normal: std::array::from_fn(|k| lanes(&|t| t.normal[k])),
+            volume: lanes(&|t| t.volume),
+        }
+    }
+
+    /// The triangle in lane `l`.
+    pub fn lane(&self, l: usize) -> FibreTriangle {
+        FibreTriangle {
+            grad: self.grad.map(|g| g.map(|x| x[l])),
+            e1: self.e1.map(|x| x[l]),
+            e2: self.e2.map(|x| x[l]),
+            normal: self.normal.map(|x| x[l]),
+            volume: self.volume[l],
+        }
+    }
+
+    /// [`FibreTriangle::internal_force`] of every lane, with the nodal
+    /// displacements `u[a][k]` per lane and the law over the lanes: the
+    /// same operations in the same order as the one-triangle kernel (so
+    /// the same bits), lane by lane. `context` only carries the lane type's
+    /// SIMD context.
+    #[inline(always)]
+    pub fn internal_forces<V: Real<Array = [f64; N]>, L: LaneStress<V> + ?Sized>(
+        &self,
+        context: V,
+        u: &[[V; 3]; 3],
+        law: &L,
+    ) -> FibreTriangleForces<V> {
+        // Explicit loads, no `[T; 3]::map`, which the inliner may leave as a
+        // call outside the SIMD context.
+        let load = |x: [f64; N]| context.load(x);
+        let mut g1 = [load(self.e1[0]), load(self.e1[1]), load(self.e1[2])];
+        let mut g2 = [load(self.e2[0]), load(self.e2[1]), load(self.e2[2])];
+        for (ua, grad) in u.iter().zip(&self.grad) {
+            let (n1, n2) = (load(grad[0]), load(grad[1]));
+            for k in 0..3 {
+                g1[k] = g1[k] + ua[k] * n1;
+                g2[k] = g2[k] + ua[k] * n2;
+            }
+        }
+        let dot = |a: &[V; 3], b: &[V; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let c = [dot(&g1, &g1), dot(&g2, &g2), dot(&g1, &g2)];
+        let (s, admissible) = law.stress_lanes(&c);
+        let volume = load(self.volume);
+        let mut p1 = g1;
+        let mut p2 = g2;
+        for k in 0..3 {
+            p1[k] = volume * (s[0] * g1[k] + s[2] * g2[k]);
+            p2[k] = volume * (s[2] * g1[k] + s[1] * g2[k]);
+        }
+        let mut force = [context; 9];
+        for (a, grad) in self.grad.iter().enumerate() {
+            let (n1, n2) = (load(grad[0]), load(grad[1]));
+            for k in 0..3 {
+                force[3 * a + k] = n1 * p1[k] + n2 * p2[k];
+            }
+        }
+        let normal = [
+            g1[1] * g2[2] - g1[2] * g2[1],
+            g1[2] * g2[0] - g1[0] * g2[2],
+            g1[0] * g2[1] - g1[1] * g2[0],
+        ];
+        FibreTriangleForces {
+            force,
+            orientation: dot(
+                &normal,
+                &[
+                    load(self.normal[0]),
+                    load(self.normal[1]),
+                    load(self.normal[2]),
+                ],
+            ),
+            admissible,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The fibre-basis kernels against the reference element
+    //! [`MembraneReference::force`] (general frame, the law's
+    //! `evaluate_invariants`).
+    //!
+    //! # Tolerance
+    //! Both sides evaluate the same law at the same `C` up to round-off: the
+    //! reference rotates `C` into the fibre frame (a few ulps of `|C|` on the
+    //! invariants), the force pass takes `C` in the fibre basis directly and
+    //! its exponentials from a polynomial instead of the C library (a few
+    //! ulps). An error `δC ~ k ε |C|` moves `S` by `‖ℂ‖ δC`, and the stress
+    //! itself carries a few ulps, so the force error is bounded by
+    //! `k ε · V |∇N| |g| (|S| + ‖ℂ‖ |C|)`, with `k` a few dozen (the sums of
+    //! the law and of the kinematics have a few dozen terms). Measured
+    //! against that scale, the accepted error is `1e-12` (`k ≈ 4500`: ample
+    //! for round-off, far below any modelling or branch error, which is of
+    //! order one on this scale). The scale uses `‖ℂ‖` because the stiff
+    //! roving term turns an ulp of `I4` into `1000 ε` MPa of stress, which
+    //! on an element whose stress is set by the soft shear term is well
+    //! above `1e-12 |f|`.
+
+    use std::collections::BTreeSet;
+
+    use nalgebra::Vector3;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    use super::*;
+    use crate::material::{Invariants, Material, MaterialSpec, UdNcf};
+
+    /// Every term with a transition and a lock, moduli of order one, a
+    /// non-integer coupling exponent (as in `tests/material.rs`).
+    const BALANCED: &str = r#"
+law = "ud-ncf"
+name = "balanced-test"
+[w4]
+c_ini = 2.0
+s_ini = 0.02
+c_mid = 0.5
+delta_s_mid = 0.01
+c_lock = 30.0
+i_lock = 0.03
+[w6]
+c_ini = 1.0
+s_ini = 0.1
+c_mid = 0.2
+delta_s_mid = 0.05
+c_lock = 5.0
+i_lock = 0.6
+[w8]
+c_ini = 1.5
+s_ini = 0.1
+c_mid = 3.0
+delta_s_mid = 0.2
+c_lock = 4.0
+i_lock = 0.4
+[w11]
+c_ini = 0.8
+s_ini = 0.05
+c_mid = 2.0
+delta_s_mid = 0.1
+c_lock = 10.0
+i_lock = 0.5
+[coupling]
+k_min = 0.3
+s11 = 6.0
+e11 = 2.5
+"#;
+
+    const SVK: &str = r#"
+law = "orthotropic-svk"
+[svk]
+e1 = 50.0
+e2 = 5.0
+nu12 = 0.3
+g12 = 1.0
+"#;
+
+    const THICKNESS: f64 = 0.3;
+    const TOLERANCE: f64 = 1e-12;
+
+    fn materials() -> Vec<Material> {
+        let named = MaterialSpec::named("schaefer2024").expect("set").material;
+        let balanced = MaterialSpec::from_toml_str(BALANCED, "balanced-test")
+            .expect("valid")
+            .material;
+        let svk = MaterialSpec::from_toml_str(SVK, "svk")
+            .expect("valid")
+            .material;
+        vec![named, balanced, svk]
+    }
+
+    fn udncf(material: &Material) -> Option<&UdNcf> {
+        match material {
+            Material::UdNcf(law) => Some(law),
+            Material::OrthotropicSvk(_) => None,
+        }
+    }
+
+    fn unit(rng: &mut StdRng) -> Vector3<f64> {
+        loop {
+            let v = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            let n = v.norm();
+            if n > 0.1 && n < 1.0 {
+                return v / n;
+            }
+        }
+    }
+
+    /// A random element and state: a triangle of random shape (angles above
+    /// about 5°), position and orientation in space, a random fibre
+    /// direction in its plane, and displacements that give prescribed
+    /// `(I4, I6, I8)` (drawn over every branch of the test sets) with the
+    /// deformed triangle turned and moved at random.
+    struct Sample {
+        x: [Vector3<f64>; 3],
+        reference: MembraneReference,
+        u: [Vector3<f64>; 3],
+        invariants: (f64, f64, f64),
+    }
+
+    fn sample(rng: &mut StdRng) -> Sample {
+        let (x, reference) = loop {
+            let size = 10f64.powf(rng.random_range(-1.0..1.5));
+            let origin = Vector3::new(
+                rng.random_range(-200.0..200.0),
+                rng.random_range(-200.0..200.0),
+                rng.random_range(-50.0..50.0),
+            );
+            let x = [0, 1, 2].map(|_| origin + size * unit(rng));
+            let e = [x[1] - x[0], x[2] - x[1], x[0] - x[2]];
+            let sine =
+                |a: &Vector3<f64>, b: &Vector3<f64>| a.cross(b).norm() / (a.norm() * b.norm());
+            if sine(&e[0], &e[1])
+                .min(sine(&e[1], &e[2]))
+                .min(sine(&e[2], &e[0]))
+                < 0.09
+            {
+                continue;
+            }
+            let normal = e[0].cross(&e[1]).normalize();
+            // A direction in the plane at a random angle, plus a random
+            // out-of-plane part that the element projects away.
+            let in_plane = unit(rng).cross(&normal).normalize();
+            let fibre = in_plane + rng.random_range(-0.5..0.5) * normal;
+            if let Ok(r) = MembraneReference::new(&x, &fibre) {
+                break (x, r);
+            }
+        };
+        let (i4, i6, i8) = loop {
+            let i4: f64 = 1.0 + rng.random_range(-0.05..0.05);
+            let i6: f64 = rng.random_range(-0.9..0.9);
+            let i8: f64 = rng.random_range(0.6..1.6);
+            if i8 - i6 * i6 / i4 >= 0.09 {
+                break (i4, i6, i8);
+            }
+        };
+        // g1, g2 with g1·g1 = I4, g1·g2 = I6, g2·g2 = I8, in a random
+        // orthonormal pair (q1, q2) of space.
+        let q1 = unit(rng);
+        let q2 = q1.cross(&unit(rng)).normalize();
+        let g1 = i4.sqrt() * q1;
+        let g2 = (i6 / i4.sqrt()) * q1 + (i8 - i6 * i6 / i4).sqrt() * q2;
+        let frame = &reference.frame;
+        let a0 = reference.e1 * frame.a0.x + reference.e2 * frame.a0.y;
+        let b0 = reference.e1 * frame.b0.x + reference.e2 * frame.b0.y;
+        // x = x0 + t + F (X − X0) with F a0 = g1, F b0 = g2, F N = n.
+        let n = g1.cross(&g2).normalize();
+        let shift = Vector3::new(
+            rng.random_range(-5.0..5.0),
+            rng.random_range(-5.0..5.0),
+            rng.random_range(-5.0..5.0),
+        );
+        let u = x.map(|xa| {
+            let dx = xa - x[0];
+            shift + g1 * dx.dot(&a0) + g2 * dx.dot(&b0) + n * dx.dot(&reference.normal) - dx
+        });
+        Sample {
+            x,
+            reference,
+            u,
+            invariants: (i4, i6, i8),
+        }
+    }
+
+    /// `V max|∇N_a| |g| (|S| + ‖ℂ‖ |C|)`: the scale of the force's round-off
+    /// (module docs).
+    fn force_scale(
+        reference: &MembraneReference,
+        u: &[Vector3<f64>; 3],
+        material: &Material,
+    ) -> f64 {
+        let kin = reference.kinematics(u);
+        let (state, tangent) = material
+            .stress_tangent(&kin.c, &reference.frame)
+            .expect("admissible");
+        let grad = reference.grad.iter().map(|g| g.norm()).fold(0.0, f64::max);
+        let g = kin.g[0].norm().max(kin.g[1].norm());
+        THICKNESS
+            * reference.area
+            * grad
+            * g
+            * (state.stress.norm() + tangent.norm() * kin.c.norm())
+    }
+
+    #[test]
+    fn internal_force_matches_the_reference_element() {
+        const STATES: usize = 4000;
+        for (m, material) in materials().iter().enumerate() {
+            let mut rng = StdRng::seed_from_u64(20_240 + m as u64);
+            let mut seen: BTreeSet<String> = BTreeSet::new();
+            let mut worst: f64 = 0.0;
+            for _ in 0..STATES {
+                let Sample {
+                    reference,
+                    u,
+                    invariants,
+                    ..
+                } = sample(&mut rng);
+                let triangle = FibreTriangle::new(&reference, THICKNESS);
+                let ua = u.map(|v| [v.x, v.y, v.z]);
+                let fast = triangle.internal_force(&ua, material).expect("admissible");
+                let (kin, _, force) = reference
+                    .force(&u, material, THICKNESS)
+                    .expect("admissible");
+                let scale = force_scale(&reference, &u, material);
+                let error = (0..9)
+                    .map(|i| (fast.force[i] - force[i]).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    error <= TOLERANCE * scale,
+                    "force {:?} vs reference {:?}: error {error:e}, scale {scale:e}",
+                    fast.force,
+                    force.as_slice()
+                );
+                // g = E + Σ u_a ⊗ ∇N_a carries the round-off of its largest
+                // terms, and the orientation is quadratic in g.
+                let g_scale = 1.0
+                    + (0..3)
+                        .map(|a| u[a].norm() * reference.grad[a].norm())
+                        .sum::<f64>();
+                assert!(
+                    (fast.orientation - kin.orientation).abs() <= TOLERANCE * g_scale * g_scale,
+                    "orientation {} vs {}",
+                    fast.orientation,
+                    kin.orientation
+                );
+                worst = worst.max(error / scale);
+                let (i4, i6, i8) = invariants;
+                let reached = Invariants::new(&kin.c, &reference.frame).expect("admissible");
+                for (got, wanted) in [(reached.i4, i4), (reached.i6, i6), (reached.i8, i8)] {
+                    assert!(
+                        (got - wanted).abs() < 1e-12,
+                        "invariants {reached:?} vs {invariants:?}"
+                    );
+                }
+                if let Some(law) = udncf(material) {
+                    let inv = Invariants {
+                        i4,
+                        i6,
+                        i8,
+                        i11: (i8 - i6 * i6 / i4).sqrt(),
+                    };
+                    let b = law.branches(&inv);
+                    seen.insert(format!("I4>=1:{}", b.roving_tension));
+                    seen.insert(format!("I6>=0:{}", b.positive_shear));
+                    seen.insert(format!("w4:{:?}", b.w4));
+                    seen.insert(format!("w6:{:?}", b.w6));
+                    seen.insert(format!("w8:{:?}", b.w8));
+                    seen.insert(format!("w11:{:?}", b.w11));
+                }
+            }
+            // Every branch each set can reach (W4 of the named set is linear;
+            // no set has a lock below its transition point).
+            let expected: &[&str] = match m {
+                0 => &[
+                    "I4>=1:false",
+                    "I4>=1:true",
+                    "I6>=0:false",
+                    "I6>=0:true",
+                    "w4:Initial",
+                    "w6:Initial",
+                    "w6:Middle",
+                    "w8:None",
+                    "w8:Some(Initial)",
+                    "w8:Some(Middle)",
+                    "w11:None",
+                    "w11:Some(Initial)",
+                    "w11:Some(Middle)",
+                    "w11:Some(MiddleLocked)",
+                ],
+                1 => &[
+                    "I4>=1:false",
+                    "I4>=1:true",
+                    "I6>=0:false",
+                    "I6>=0:true",
+                    "w4:Initial",
+                    "w4:Middle",
+                    "w4:MiddleLocked",
+                    "w6:Initial",
+                    "w6:Middle",
+                    "w6:MiddleLocked",
+                    "w8:None",
+                    "w8:Some(Initial)",
+                    "w8:Some(Middle)",
+                    "w8:Some(MiddleLocked)",
+                    "w11:None",
+                    "w11:Some(Initial)",
+                    "w11:Some(Middle)",
+                    "w11:Some(MiddleLocked)",
+                ],
+                _ => &[],
+            };
+            for branch in expected {
+                assert!(
+                    seen.contains(*branch),
+                    "set {m}: branch {branch} not reached"
+                );
+            }
+            eprintln!("set {m}: worst error / scale = {worst:e}");
+        }
+    }
+
+    /// Forces, orientations and acceptance of the four lanes through the
+    /// AVX2 lanes, where the CPU has them.
+    type LaneForces = ([[f64; 9]; 4], [f64; 4], [bool; 4]);
+
+    #[cfg(target_arch = "x86_64")]
+    fn avx2_forces(
+        batch: &FibreTriangles<4>,
+        u: &[[[f64; 3]; 3]; 4],
+        law: &UdNcf,
+    ) -> Option<LaneForces> {
+        use crate::material::lanes::x86::{F64x4, F64x8};
+        let simd = pulp::x86::V3::try_new()?;
+        let context = F64x4::new(simd, [0.0; 4]);
+        let ue: [[F64x4; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|k| context.load(std::array::from_fn(|l| u[l][a][k])))
+        });
+        let f = batch.internal_forces(context, &ue, law);
+        let force = f.force.map(|x| x.store());
+        let bits = F64x4::bits(f.admissible);
+        let four: LaneForces = (
+            std::array::from_fn(|l| std::array::from_fn(|i| force[i][l])),
+            f.orientation.store(),
+            std::array::from_fn(|l| bits & (1 << l) != 0),
+        );
+        // Eight lanes in two registers: the batch twice, reversed the
+        // second time, gives the same four triangles' results twice.
+        let wide = FibreTriangles::<8>::from_fn(|l| batch.lane(if l < 4 { l } else { 7 - l }));
+        let context = F64x8::new(simd, [0.0; 8]);
+        let ue: [[F64x8; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|k| {
+                context.load(std::array::from_fn(|l| {
+                    u[if l < 4 { l } else { 7 - l }][a][k]
+                }))
+            })
+        });
+        let f = wide.internal_forces(context, &ue, law);
+        let force = f.force.map(|x| x.store());
+        let bits = F64x8::bits(f.admissible);
+        for l in 0..8 {
+            let lane = if l < 4 { l } else { 7 - l };
+            assert_eq!(
+                force.map(|x| x[l].to_bits()),
+                four.0[lane].map(f64::to_bits)
+            );
+            assert_eq!(f.orientation.store()[l].to_bits(), four.1[lane].to_bits());
+            assert_eq!(bits & (1 << l) != 0, four.2[lane]);
+        }
+        Some(four)
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    fn avx2_forces(_: &FibreTriangles<4>, _: &[[[f64; 3]; 3]; 4], _: &UdNcf) -> Option<LaneForces> {
+        None
+    }
+
+    #[test]
+    fn lanes_repeat_the_one_triangle_kernel_bit_for_bit() {
+        const BATCHES: usize = 1000;
+        for material in materials() {
+            let Some(law) = udncf(&material) else {
+                continue;
+            };
+            let mut rng = StdRng::seed_from_u64(4);
+            let (mut accepted, mut rejected) = (0, 0);
+            for _ in 0..BATCHES {
+                let samples: [Sample; 4] = std::array::from_fn(|_| sample(&mut rng));
+                let mut u = samples.each_ref().map(|s| s.u.map(|v| [v.x, v.y, v.z]));
+                // Inadmissible lanes now and then: a triangle collapsed to a
+                // line (det C = 0 up to round-off, either sign) or a point,
+                // a non-finite displacement.
+                if rng.random_range(0.0..1.0) < 0.2 {
+                    let x = &samples[1].x;
+                    let t: f64 = rng.random_range(0.0..1.0);
+                    let onto = x[0] + t * (x[1] - x[0]);
+                    u[1][2] = (onto - x[2]).into();
+                }
+                if rng.random_range(0.0..1.0) < 0.1 {
+                    let x = &samples[2].x;
+                    u[2] = x.map(|xa| (x[0] - xa).into());
+                }
+                if rng.random_range(0.0..1.0) < 0.1 {
+                    u[3][0][1] = f64::NAN;
+                }
+                let triangles: [FibreTriangle; 4] =
+                    std::array::from_fn(|l| FibreTriangle::new(&samples[l].reference, THICKNESS));
+                let batch = FibreTriangles::<4>::from_fn(|l| triangles[l]);
+                assert_eq!(batch.lane(2), triangles[2]);
+                let lanes = avx2_forces(&batch, &u, law);
+                for l in 0..4 {
+                    let single = FibreTriangles::<1>::from_fn(|_| triangles[l]);
+                    let generic = single.internal_forces(0.0, &u[l], law);
+                    let accepted_lane = generic.admissible;
+                    match triangles[l].internal_force(&u[l], &material) {
+                        Ok(one) => {
+                            accepted += 1;
+                            assert!(accepted_lane);
+                            let bits = |f: [f64; 9]| f.map(f64::to_bits);
+                            assert_eq!(bits(generic.force), bits(one.force));
+                            assert_eq!(generic.orientation.to_bits(), one.orientation.to_bits());
+                            if let Some((force, orientation, admissible)) = lanes {
+                                assert!(admissible[l]);
+                                assert_eq!(bits(force[l]), bits(one.force));
+                                assert_eq!(orientation[l].to_bits(), one.orientation.to_bits());
+                            }
+                        }
+                        Err(_) => {
+                            rejected += 1;
+                            assert!(!accepted_lane);
+                            if let Some((_, _, admissible)) = lanes {
+                                assert!(!admissible[l]);
+                            }
+                        }
+                    }
+                }
+            }
+            assert!(rejected > 100 && accepted > 3000, "{rejected} rejected");
+        }
+    }
 }

@@ -7,6 +7,9 @@
 //! k11(I11) = 1                                               I11 ≥ 1
 //! ```
 
+use super::generalized::decay_lanes;
+use super::lanes::Real;
+
 /// Parameters of the coupling `k11` (Eq. 15, corrected).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Coupling {
@@ -58,5 +61,35 @@ impl Coupling {
             dk: scaled * dq,
             d2k: scaled * (dq * dq - d2q),
         }
+    }
+
+    /// `(k11, k11′)` per lane: the expressions of [`Coupling::eval`] without
+    /// `k11″` (operands of `×` in either order), with `e^(−q)` from
+    /// [`decay_lanes`]; `(1, 0)` on the lanes with `I11 ≥ 1`.
+    #[inline(always)]
+    pub fn value_slope_lanes<V: Real>(&self, i11: V) -> (V, V) {
+        let one = i11.splat(1.0);
+        let zero = i11.splat(0.0);
+        let active = i11.lt(one);
+        if !V::any(active) {
+            return (one, zero);
+        }
+        // u = 1 − I11 > 0 on the active lanes (as −(I11 − 1), the same
+        // value); the others take u = 1 and are discarded.
+        let u = V::select(active, -(i11 - 1.0), one);
+        let e = self.e11;
+        let u_em2 = if e == 2.0 {
+            one
+        } else {
+            u.map(|u| u.powf(e - 2.0))
+        };
+        let u_em1 = u_em2 * u;
+        let q = u_em1 * self.s11 * u;
+        let dq = u_em1 * (self.s11 * e);
+        let scaled = decay_lanes(q) * (1.0 - self.k_min);
+        (
+            V::select(active, scaled + self.k_min, one),
+            V::select(active, scaled * dq, zero),
+        )
     }
 }

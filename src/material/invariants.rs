@@ -4,6 +4,7 @@
 
 use super::MaterialError;
 use super::frame::{FibreFrame, Sym2, contract};
+use super::lanes::Real;
 
 /// The pseudo-invariants at one material point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,6 +18,49 @@ pub struct Invariants {
     /// `I11 = sqrt((I4 I8 − I6²)/I4)`: stretch perpendicular to the current
     /// rovings (Eq. 7).
     pub i11: f64,
+}
+
+/// The pseudo-invariants over a [`Real`]: of one point or of several
+/// independent points at once (see [`Invariants`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InvariantLanes<V> {
+    /// `I4` per lane.
+    pub i4: V,
+    /// `I6` per lane.
+    pub i6: V,
+    /// `I8` per lane.
+    pub i8: V,
+    /// `I11` per lane (meaningless on an inadmissible lane).
+    pub i11: V,
+    /// `1 / I4` per lane.
+    pub inv_i4: V,
+}
+
+impl<V: Real> InvariantLanes<V> {
+    /// [`Invariants::in_fibre_basis`] on lanes, `c = [C11, C22, C12]`: the
+    /// invariants and, per lane, whether the state is admissible (finite
+    /// `C`, `I4 > 0`, `det C > 0`, the same tests). `I11 = √(det C · (1/I4))`,
+    /// with the reciprocal kept for the law.
+    #[inline(always)]
+    pub fn in_fibre_basis(c: &[V; 3]) -> (Self, V::Mask) {
+        let [i4, i8, i6] = *c;
+        let zero = i4.splat(0.0);
+        let det = i4 * i8 - i6 * i6;
+        let admissible =
+            i4.is_finite() & i8.is_finite() & i6.is_finite() & i4.gt(zero) & det.gt(zero);
+        let inv_i4 = i4.splat(1.0) / i4;
+        let i11 = (det * inv_i4).sqrt();
+        (
+            Self {
+                i4,
+                i6,
+                i8,
+                i11,
+                inv_i4,
+            },
+            admissible,
+        )
+    }
 }
 
 impl Invariants {

@@ -10,6 +10,7 @@ pub mod diagnostics;
 pub mod frame;
 pub mod generalized;
 pub mod invariants;
+pub mod lanes;
 pub mod law;
 pub mod params;
 pub mod svk;

@@ -6,7 +6,8 @@ use super::MaterialError;
 use super::coupling::Coupling;
 use super::frame::{FibreFrame, Sym2};
 use super::generalized::{GeneralizedTerm, TermBranch};
-use super::invariants::Invariants;
+use super::invariants::{InvariantLanes, Invariants};
+use super::lanes::Real;
 use super::law::{
     MembraneMaterial, StressState, Tangent, check_finite, stress_from_gradient,
     tangent_from_hessian,
@@ -180,6 +181,78 @@ impl UdNcf {
     }
 }
 
+impl UdNcf {
+    /// [`MembraneMaterial::fibre_stress`] over a [`Real`] (one point, or
+    /// several independent points at once): `c = [C11, C22, C12]` in the
+    /// fibre basis to `S = [S11, S22, S12]` in that basis and, per lane,
+    /// whether the state is admissible and the stress finite (where
+    /// `fibre_stress` returns `Ok`, with the same `S` bit for bit); the
+    /// stress of a rejected lane is meaningless.
+    #[inline(always)]
+    pub(crate) fn fibre_stress_lanes<V: Real>(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        let (inv, admissible) = InvariantLanes::in_fibre_basis(c);
+        let stress = self.stress_of_lanes(&inv);
+        let finite = stress[0].is_finite() & stress[1].is_finite() & stress[2].is_finite();
+        (stress, admissible & finite)
+    }
+
+    /// The gradient of [`UdNcf::evaluate_invariants`] on lanes, as
+    /// `S = 2 (g4 N4 + g6 N6 + g8 N8)` in the fibre basis: the same
+    /// expressions (operands of `+` and `×` in either order), a branch taken
+    /// where any lane needs it and selected per lane; the energy of W8 only
+    /// where the coupling needs it (`I8 ≥ 1`, `I11 < 1`), and the chain rule
+    /// through `I11` written out:
+    /// `∂I11/∂(I4, I6, I8) = (r², −2r, 1) / (2 I11)`, `r = I6 · (1/I4)`.
+    #[inline(always)]
+    fn stress_of_lanes<V: Real>(&self, inv: &InvariantLanes<V>) -> [V; 3] {
+        let InvariantLanes {
+            i4,
+            i6,
+            i8,
+            i11,
+            inv_i4,
+        } = *inv;
+        let zero = i4.splat(0.0);
+        let one = i4.splat(1.0);
+        let d4 = i4 - 1.0;
+        let mut g4 = self.w4.stress_lanes(d4.abs()).copysign(d4);
+        let mut g6 = self.w6.stress_lanes(i6.abs()).copysign(i6);
+        let mut g8 = zero;
+        let mut w_11 = zero;
+        let compacted = i11.le(i11.splat(1.0 + KINK_TOLERANCE));
+        if V::any(compacted) {
+            // 1 − I11 as −(I11 − 1): the same value.
+            let f11 = self.w11.stress_lanes((-(i11 - 1.0)).max(zero));
+            w_11 = V::select(compacted, -f11, zero);
+        }
+        let stretched = i8.ge(i8.splat(1.0 - KINK_TOLERANCE));
+        if V::any(stretched) {
+            let x8 = (i8 - 1.0).max(zero);
+            let coupled = stretched & i11.lt(one);
+            let stress8 = if V::any(coupled) {
+                let (energy8, stress8) = self.w8.energy_stress_lanes(x8);
+                let (k, dk) = self.coupling.value_slope_lanes(i11);
+                w_11 = V::select(coupled, w_11 + dk * energy8, w_11);
+                V::select(coupled, k * stress8, stress8)
+            } else {
+                self.w8.stress_lanes(x8)
+            };
+            g8 = V::select(stretched, stress8, zero);
+        }
+        let chained = w_11.ne(zero);
+        if V::any(chained) {
+            let r = i6 * inv_i4;
+            let h = w_11 * 0.5 / i11;
+            g4 = V::select(chained, g4 + r * r * h, g4);
+            g6 = V::select(chained, g6 - r * 2.0 * h, g6);
+            g8 = V::select(chained, g8 + h, g8);
+        }
+        // S = 2 (g4 N4 + g6 N6 + g8 N8) with N4 = E1⊗E1, N8 = E2⊗E2,
+        // N6 = sym(E1⊗E2).
+        [g4 * 2.0, g8 * 2.0, g6]
+    }
+}
+
 impl MembraneMaterial for UdNcf {
     #[inline]
     fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError> {
@@ -192,48 +265,19 @@ impl MembraneMaterial for UdNcf {
         Ok(state)
     }
 
-    /// The force pass's path, straight-line: the gradient of
-    /// [`UdNcf::evaluate_invariants`] with the energy of W8 only where the
-    /// coupling needs it (`I8 ≥ 1`, `I11 < 1`), one transcendental per
-    /// active term and the chain rule through `I11` written out:
-    /// `∂I11/∂(I4, I6, I8) = (r², −2r, 1) / (2 I11)`, `r = I6/I4`.
+    /// The force pass's path: the stress of [`UdNcf::evaluate_invariants`]
+    /// without the energy, as the one-lane case of
+    /// [`UdNcf::fibre_stress_lanes`] (so the same bits as every lane of the
+    /// batched pass); a rejected state is diagnosed by
+    /// [`Invariants::in_fibre_basis`].
     #[inline(always)]
     fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
-        let inv = Invariants::in_fibre_basis(c)?;
-        let d4 = inv.i4 - 1.0;
-        let mut g4 = self.w4.stress(d4.abs()).copysign(d4);
-        let mut g6 = self.w6.stress(inv.i6.abs()).copysign(inv.i6);
-        let mut g8 = 0.0;
-        let mut w_11 = 0.0;
-        if inv.i11 <= 1.0 + KINK_TOLERANCE {
-            w_11 = -self.w11.stress((1.0 - inv.i11).max(0.0));
+        let ([s11, s22, s12], accepted) = self.fibre_stress_lanes(&[c[0], c[1], c[2]]);
+        if accepted {
+            return Ok(Sym2::new(s11, s22, s12));
         }
-        if inv.i8 >= 1.0 - KINK_TOLERANCE {
-            let x8 = (inv.i8 - 1.0).max(0.0);
-            if inv.i11 < 1.0 {
-                let (energy8, stress8) = self.w8.energy_stress(x8);
-                let k = self.coupling.eval(inv.i11);
-                g8 = k.k * stress8;
-                w_11 += k.dk * energy8;
-            } else {
-                g8 = self.w8.stress(x8);
-            }
-        }
-        if w_11 != 0.0 {
-            let r = inv.i6 / inv.i4;
-            let h = 0.5 * w_11 / inv.i11;
-            g4 += r * r * h;
-            g6 -= 2.0 * r * h;
-            g8 += h;
-        }
-        // S = 2 (g4 N4 + g6 N6 + g8 N8) with N4 = E1⊗E1, N8 = E2⊗E2,
-        // N6 = sym(E1⊗E2).
-        let stress = Sym2::new(2.0 * g4, 2.0 * g8, g6);
-        if stress.iter().all(|s| s.is_finite()) {
-            Ok(stress)
-        } else {
-            Err(MaterialError::NonFiniteResponse)
-        }
+        Invariants::in_fibre_basis(c)?;
+        Err(MaterialError::NonFiniteResponse)
     }
 
     #[inline]

@@ -12,12 +12,33 @@ use super::super::assembly::{ElementFailure, ElementFailureKind};
 use super::super::dofs::DofMap;
 use super::super::model::MembraneModel;
 use crate::element::FibreTriangle;
+use crate::element::fibre_triangle::{FibreTriangles, LaneStress};
+use crate::material::lanes::Real;
+#[cfg(target_arch = "x86_64")]
+use crate::material::lanes::x86::F64x8;
+use crate::material::{Material, MaterialError, UdNcf};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
 /// added in block order, so sums do not depend on the thread count.
 pub const NODE_BLOCK: usize = 256;
 /// Smallest run of elements one rayon task takes.
 const ELEMENT_MIN_LEN: usize = 512;
+/// Triangles per batch of the force pass: the lanes of the law (two AVX2
+/// registers).
+const LANES: usize = 8;
+/// Triangles per task of the batched force pass (a multiple of [`LANES`]).
+const ELEMENT_CHUNK: usize = 256;
+
+/// [`LANES`] triangles of the force pass, lane by lane, with their nodes.
+/// The last batch repeats its last triangle in the lanes past the end.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+struct ElementBatch {
+    triangles: FibreTriangles<LANES>,
+    /// `nodes[a][l]`: node `a` of lane `l`.
+    nodes: [[u32; LANES]; 3],
+}
 
 /// Mass figures of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -70,6 +91,8 @@ pub struct ExplicitSystem<'a> {
     /// Its triangles in fibre-basis form.
     pub elements: Vec<FibreTriangle>,
     nodes_of: Vec<[u32; 3]>,
+    /// The same triangles in batches of [`LANES`] for the force pass.
+    batches: Vec<ElementBatch>,
     /// CSR: for node `n`, `entries[offsets[n]..offsets[n + 1]]` are
     /// `9 e + 3 a` for every triangle `e` using it as its node `a`.
     offsets: Vec<u32>,
@@ -88,6 +111,39 @@ pub struct ExplicitSystem<'a> {
     pub mass: MassSummary,
     /// Reject triangles that turn over in their plane.
     pub check_inversion: bool,
+}
+
+/// The UD-NCF law on lanes for the batched kernel.
+impl<V: Real> LaneStress<V> for UdNcf {
+    #[inline(always)]
+    fn stress_lanes(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        self.fibre_stress_lanes(c)
+    }
+}
+
+/// [`ExplicitSystem::batch_forces`] on AVX2 lanes, as a `pulp` operation:
+/// `with_simd` is inlined into pulp's function compiled for x86-64-v3, and
+/// everything below it (all `#[inline(always)]`) with it.
+#[cfg(target_arch = "x86_64")]
+struct Avx2Batches<'s, 'a> {
+    system: &'s ExplicitSystem<'a>,
+    simd: pulp::x86::V3,
+    law: &'s UdNcf,
+    u: &'s [[f64; 3]],
+    batches: &'s [ElementBatch],
+    out: &'s mut [[f64; 9]],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl pulp::WithSimd for Avx2Batches<'_, '_> {
+    type Output = Option<usize>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
+        let context = F64x8::new(self.simd, [0.0; LANES]);
+        self.system
+            .batch_forces(context, self.law, self.u, self.batches, self.out)
+    }
 }
 
 impl<'a> ExplicitSystem<'a> {
@@ -116,6 +172,17 @@ impl<'a> ExplicitSystem<'a> {
             .triangles
             .iter()
             .map(|t| t.map(|n| n as u32))
+            .collect();
+        let batches = (0..elements.len().div_ceil(LANES))
+            .map(|b| {
+                let element = |l: usize| (b * LANES + l).min(elements.len() - 1);
+                ElementBatch {
+                    triangles: FibreTriangles::from_fn(|l| elements[element(l)]),
+                    nodes: std::array::from_fn(|a| {
+                        std::array::from_fn(|l| nodes_of[element(l)][a])
+                    }),
+                }
+            })
             .collect();
         let n_nodes = model.nodes.len();
         let mut counts = vec![0u32; n_nodes + 1];
@@ -148,6 +215,7 @@ impl<'a> ExplicitSystem<'a> {
             model,
             elements,
             nodes_of,
+            batches,
             offsets,
             entries,
             element_density: vec![density; model.triangles.len()],
@@ -238,35 +306,142 @@ impl<'a> ExplicitSystem<'a> {
 
     /// Element pass: the internal force of every triangle at `u` into
     /// `forces`, in parallel (each task writes only its own triangles).
+    /// With the UD-NCF law on a CPU with AVX2 (x86-64-v3), [`LANES`]
+    /// triangles at a time, one per SIMD lane; elsewhere one at a time.
+    /// Either way each triangle's force has the same bits, those of
+    /// [`FibreTriangle::internal_force`], whatever the thread count.
     ///
     /// # Errors
-    /// The lowest-index failing element.
+    /// The lowest-index failing element (the forces are then unspecified).
     pub fn element_forces(&self, u: &[f64], forces: &mut [[f64; 9]]) -> Result<(), ElementFailure> {
         let first_failure = AtomicUsize::new(usize::MAX);
-        let material = &self.model.material;
-        let check = self.check_inversion;
+        let (nodes_u, _) = u.as_chunks::<3>();
         forces
-            .par_iter_mut()
-            .with_min_len(ELEMENT_MIN_LEN)
+            .par_chunks_mut(ELEMENT_CHUNK)
+            .zip(self.batches.par_chunks(ELEMENT_CHUNK / LANES))
             .enumerate()
-            .for_each(|(e, out)| {
-                let ue = self.element_displacements(e, u);
-                match self.elements[e].internal_force(&ue, material) {
-                    Ok(f) if !check || f.orientation > 0.0 => *out = f.force,
-                    _ => {
-                        first_failure.fetch_min(e, Ordering::Relaxed);
-                    }
+            .for_each(|(chunk, (out, batches))| {
+                let first = chunk * ELEMENT_CHUNK;
+                if let Some(e) = self.chunk_forces(nodes_u, batches, first, out) {
+                    first_failure.fetch_min(e, Ordering::Relaxed);
                 }
             });
         match first_failure.into_inner() {
             usize::MAX => Ok(()),
             element => Err(ElementFailure {
                 element,
+                // The one-triangle kernel repeats the lanes' arithmetic, so it
+                // fails too; the fallback only guards against a mismatch.
                 kind: self
                     .element_failure(element, u)
-                    .expect("the element failed in the pass"),
+                    .unwrap_or(ElementFailureKind::Material(
+                        MaterialError::NonFiniteResponse,
+                    )),
             }),
         }
+    }
+
+    /// The forces of the triangles `first..first + out.len()` (the
+    /// triangles of `batches`) into `out`; the first failing triangle, if
+    /// any.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+    fn chunk_forces(
+        &self,
+        u: &[[f64; 3]],
+        batches: &[ElementBatch],
+        first: usize,
+        out: &mut [[f64; 9]],
+    ) -> Option<usize> {
+        #[cfg(target_arch = "x86_64")]
+        if let Material::UdNcf(law) = &self.model.material
+            && let Some(simd) = pulp::x86::V3::try_new()
+        {
+            let pass = Avx2Batches {
+                system: self,
+                simd,
+                law,
+                u,
+                batches,
+                out,
+            };
+            return <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass)
+                .map(|offset| first + offset);
+        }
+        self.forces_one_by_one(u, first, out)
+    }
+
+    /// [`ExplicitSystem::chunk_forces`] one triangle at a time (any law,
+    /// any CPU).
+    fn forces_one_by_one(
+        &self,
+        u: &[[f64; 3]],
+        first: usize,
+        out: &mut [[f64; 9]],
+    ) -> Option<usize> {
+        let material = &self.model.material;
+        for (i, out) in out.iter_mut().enumerate() {
+            let e = first + i;
+            let ue = self.element_displacements(e, u.as_flattened());
+            match self.elements[e].internal_force(&ue, material) {
+                Ok(f) if !self.check_inversion || f.orientation > 0.0 => *out = f.force,
+                _ => return Some(e),
+            }
+        }
+        None
+    }
+
+    /// The forces of `batches` into `out` (their triangles, in order), one
+    /// triangle per lane of `V`; the offset in `out` of the first failing
+    /// triangle, if any. Inlined into the SIMD context of the caller.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    #[inline(always)]
+    fn batch_forces<V: Real<Array = [f64; LANES]>>(
+        &self,
+        context: V,
+        law: &UdNcf,
+        u: &[[f64; 3]],
+        batches: &[ElementBatch],
+        out: &mut [[f64; 9]],
+    ) -> Option<usize> {
+        let zero = context.splat(0.0);
+        for (b, (batch, out)) in batches.iter().zip(out.chunks_mut(LANES)).enumerate() {
+            let mut ue = [[[0.0; LANES]; 3]; 3];
+            for (ua, nodes) in ue.iter_mut().zip(&batch.nodes) {
+                for (l, &n) in nodes.iter().enumerate() {
+                    let un = &u[n as usize];
+                    for k in 0..3 {
+                        ua[k][l] = un[k];
+                    }
+                }
+            }
+            // Explicit loops, no `[T; N]::map`, which the inliner may leave
+            // as a call outside the SIMD context.
+            let mut lanes_u = [[context; 3]; 3];
+            for (lanes, ua) in lanes_u.iter_mut().zip(&ue) {
+                for k in 0..3 {
+                    lanes[k] = context.load(ua[k]);
+                }
+            }
+            let f = batch.triangles.internal_forces(context, &lanes_u, law);
+            let mut force = [[0.0; LANES]; 9];
+            for (fi, lanes) in force.iter_mut().zip(&f.force) {
+                *fi = lanes.store();
+            }
+            for (l, o) in out.iter_mut().enumerate() {
+                for (oi, fi) in o.iter_mut().zip(&force) {
+                    *oi = fi[l];
+                }
+            }
+            let mut accepted = f.admissible;
+            if self.check_inversion {
+                accepted = accepted & f.orientation.gt(zero);
+            }
+            let rejected = !V::bits(accepted) & ((1 << out.len()) - 1);
+            if rejected != 0 {
+                return Some(b * LANES + rejected.trailing_zeros() as usize);
+            }
+        }
+        None
     }
 
     /// `Σ` of the element forces at node `node`, dof `k`, in adjacency order.
@@ -297,7 +472,11 @@ impl<'a> ExplicitSystem<'a> {
     /// Gather pass without update, for outputs: the internal force per dof
     /// into `internal` and, per node block, the kinetic energy of the free
     /// dofs with the velocity `v_n = v_{n−½} + (Δt/2)(a_n − α v_{n−½})`
-    /// into `partial`.
+    /// into `kinetic_partial`, and the energy the damping takes over that
+    /// half step, `α m ((v_{n−½} + v_n)/2)² Δt/2`, into `damping_partial`
+    /// (so that the reported damping energy reaches `t_n` like the kinetic
+    /// energy does).
+    #[allow(clippy::too_many_arguments)]
     pub fn gather_with_kinetic(
         &self,
         forces: &[[f64; 9]],
@@ -305,14 +484,17 @@ impl<'a> ExplicitSystem<'a> {
         half_step: f64,
         damping: f64,
         internal: &mut [f64],
-        partial: &mut [f64],
+        kinetic_partial: &mut [f64],
+        damping_partial: &mut [f64],
     ) {
         internal
             .par_chunks_mut(3 * NODE_BLOCK)
-            .zip(partial.par_iter_mut())
+            .zip(kinetic_partial.par_iter_mut())
+            .zip(damping_partial.par_iter_mut())
             .enumerate()
-            .for_each(|(block, (f_block, sum))| {
+            .for_each(|(block, ((f_block, kinetic_sum), damping_sum))| {
                 let mut kinetic = 0.0;
+                let mut dissipated = 0.0;
                 let mut f = [0.0; 3];
                 for (i, f_node) in f_block.chunks_exact_mut(3).enumerate() {
                     let node = block * NODE_BLOCK + i;
@@ -325,10 +507,13 @@ impl<'a> ExplicitSystem<'a> {
                             let v = v_half[dof];
                             let vn = v + half_step * (-fk / m - damping * v);
                             kinetic += 0.5 * m * vn * vn;
+                            let v_mean = 0.5 * (v + vn);
+                            dissipated += damping * m * v_mean * v_mean * half_step;
                         }
                     }
                 }
-                *sum = kinetic;
+                *kinetic_sum = kinetic;
+                *damping_sum = dissipated;
             });
     }
 
@@ -485,5 +670,89 @@ impl<'a> ExplicitSystem<'a> {
     /// Number of node blocks.
     pub fn node_blocks(&self) -> usize {
         self.model.nodes.len().div_ceil(NODE_BLOCK)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    use super::*;
+    use crate::material::MaterialSpec;
+    use crate::mesh::generate::{GridPattern, GridResolution, OatSpecimen, oat_specimen};
+
+    /// A 15 × 30 mm strip of 13 × 25 cells (650 triangles: 82 batches, the
+    /// last one padded), sheared and perturbed at random, so that triangles
+    /// sit on different branches of the law side by side.
+    fn strip(seed: u64) -> (MembraneModel, DofMap, Vec<f64>) {
+        let mesh = oat_specimen(&OatSpecimen {
+            width: 15.0,
+            length: 30.0,
+            bias_angle_deg: 30.0,
+            resolution: GridResolution::Counts { nx: 13, ny: 25 },
+            pattern: GridPattern::RovingDiagonal,
+        })
+        .expect("mesh")
+        .mesh;
+        assert_ne!(mesh.triangles.len() % LANES, 0, "a padded last batch");
+        let material = MaterialSpec::named("schaefer2024").expect("set").material;
+        let model = MembraneModel::new(
+            mesh.nodes.clone(),
+            mesh.triangles.clone(),
+            &mesh.fibres,
+            material,
+            0.3,
+        )
+        .expect("model");
+        let dofs = DofMap::new(mesh.nodes.len(), &[]);
+        let mut rng = StdRng::seed_from_u64(seed);
+        let u = mesh
+            .nodes
+            .iter()
+            .flat_map(|x: &Vector3<f64>| {
+                let shear = 0.3 * x.y;
+                [
+                    shear + rng.random_range(-0.3..0.3),
+                    -0.05 * x.y + rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                ]
+            })
+            .collect();
+        (model, dofs, u)
+    }
+
+    #[test]
+    fn batched_pass_repeats_the_one_by_one_pass_bit_for_bit() {
+        for seed in 0..4 {
+            let (model, dofs, mut u) = strip(seed);
+            let system = ExplicitSystem::new(&model, &dofs, 1e-9, None, true, &u).expect("system");
+            let n = model.triangles.len();
+            let (nodes_u, _) = u.as_chunks::<3>();
+            let mut one_by_one = vec![[0.0; 9]; n];
+            assert_eq!(system.forces_one_by_one(nodes_u, 0, &mut one_by_one), None);
+            let mut batched = vec![[f64::NAN; 9]; n];
+            system.element_forces(&u, &mut batched).expect("forces");
+            for (e, (a, b)) in batched.iter().zip(&one_by_one).enumerate() {
+                assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "element {e}");
+            }
+            // Turn a triangle over: both passes name the same element.
+            let e = 7 + 13 * seed as usize;
+            let [n0, n1, n2] = model.triangles[e];
+            for k in 0..3 {
+                let x = |n: usize| model.nodes[n][k] + u[3 * n + k];
+                let centre = (x(n0) + x(n1)) / 2.0;
+                u[3 * n2 + k] = 2.0 * centre - x(n2) - model.nodes[n2][k];
+            }
+            let failure = system
+                .element_forces(&u, &mut batched)
+                .expect_err("inverted");
+            let (nodes_u, _) = u.as_chunks::<3>();
+            assert_eq!(
+                system.forces_one_by_one(nodes_u, 0, &mut one_by_one),
+                Some(failure.element)
+            );
+        }
     }
 }
