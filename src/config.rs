@@ -124,6 +124,33 @@ impl TomlChecker<'_> {
         }
     }
 
+    /// The value of a key that names one of `options`, or an error listing
+    /// them (`"a", "b" or "c"`).
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`].
+    pub fn choice<T: Copy>(
+        &self,
+        v: &Spanned<String>,
+        key: &str,
+        options: &[(&str, T)],
+    ) -> Result<T, ConfigError> {
+        if let Some((_, value)) = options.iter().find(|(name, _)| name == v.get_ref()) {
+            return Ok(*value);
+        }
+        let names: Vec<String> = options.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+        let expected = match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+            _ => names.join(""),
+        };
+        Err(self.invalid(
+            self.line_of(v),
+            key,
+            format!("\"{}\"", v.get_ref()),
+            &expected,
+        ))
+    }
+
     /// A missing key or table.
     pub fn missing(&self, key: &str, expected: &str) -> ConfigError {
         self.invalid(0, key, "(missing)".to_string(), expected)

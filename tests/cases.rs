@@ -825,6 +825,7 @@ fn a_coarse_45_degree_run_writes_every_output() {
         "title",
         "complete",
         "status",
+        "solver",
         "units",
         "material",
         "mesh",
@@ -833,13 +834,16 @@ fn a_coarse_45_degree_run_writes_every_output() {
         "newton_iterations",
         "factorisations",
         "timings",
+        "explicit",
         "output_seconds",
         "wall_seconds",
         "history",
     ] {
         assert!(keys.contains(&key), "summary.json lacks `{key}`");
     }
-    assert_eq!(keys.len(), 15, "undocumented keys in {keys:?}");
+    assert_eq!(keys.len(), 17, "undocumented keys in {keys:?}");
+    assert_eq!(json["solver"], "quasi-static");
+    assert!(json["explicit"].is_null());
     assert_eq!(json["complete"], true);
     assert_eq!(json["status"]["status"], "complete");
     assert_eq!(json["case"], case.source.as_str());
@@ -1115,4 +1119,219 @@ fn inp_msh_and_generated_meshes_give_the_same_force() {
         rel(generated, inp) <= 1e-9,
         "inp {inp} N, generated {generated} N"
     );
+}
+
+/// docs/explicit.md "The cross-check", on a coarse mesh: the 45° OAT run
+/// explicitly (default clamp speed, smooth step) gives the quasi-static
+/// clamp force and MDZ strains within 2 % RMS of their peaks over 0–80 mm
+/// (the criterion), with KE below 1 % of IE from 10 % of the stroke
+/// on, and writes the same outputs plus the energy history.
+#[test]
+fn explicit_45_degree_run_matches_the_quasi_static_one() {
+    let dir = TempDir::new().unwrap();
+    let text = edit(
+        BASE,
+        &[
+            ("element_size = 15.0", "element_size = 10.0"),
+            ("displacement = 40.0", "displacement = 80.0"),
+        ],
+    );
+    let quasi_static = load(dir.path(), &text);
+    let explicit = load(
+        dir.path(),
+        &edit(&text, &[("title = ", "solver = \"explicit\"\ntitle = ")]),
+    );
+    let (qs_out, ex_out) = (dir.path().join("qs"), dir.path().join("ex"));
+    let qs = run(&quasi_static, &qs_out);
+    let ex = run(&explicit, &ex_out);
+    assert!(qs.complete && ex.complete);
+
+    // RMS of the explicit curve (linear interpolation between its rows,
+    // every 0.5 mm) at the quasi-static displacements, over the peak.
+    let rms_over_peak = |reference: &[(f64, f64)], curve: &[(f64, f64)]| {
+        let interpolate = |d: f64| {
+            let k = curve.partition_point(|p| p.0 < d).clamp(1, curve.len() - 1);
+            let ((d0, y0), (d1, y1)) = (curve[k - 1], curve[k]);
+            y0 + (y1 - y0) * (d - d0) / (d1 - d0)
+        };
+        let peak = reference.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
+        let sum: f64 = reference
+            .iter()
+            .map(|&(d, y)| (interpolate(d) - y).powi(2))
+            .sum();
+        (sum / reference.len() as f64).sqrt() / peak
+    };
+    type Pick = fn(&ncform::cli::run::HistoryRow) -> f64;
+    let columns: [(&str, Pick); 4] = [
+        ("force", |h| h.force),
+        ("E22", |h| h.mdz_e22),
+        ("shear angle", |h| h.mdz_shear_angle_deg),
+        ("E_perp", |h| h.mdz_e_perp),
+    ];
+    for (name, pick) in columns {
+        let curve = |s: &RunSummary| -> Vec<(f64, f64)> {
+            std::iter::once((0.0, 0.0))
+                .chain(s.history.iter().map(|h| (h.displacement, pick(h))))
+                .collect()
+        };
+        let error = rms_over_peak(&curve(&qs)[1..], &curve(&ex));
+        println!("{name}: RMS difference {:.3} % of the peak", 100.0 * error);
+        assert!(error <= 0.02, "{name}: {:.3} % > 2 %", 100.0 * error);
+    }
+    let summary = ex.explicit.as_ref().expect("explicit figures");
+    println!(
+        "KE/IE max {:.3} %, balance {:.1e}, {} increments",
+        100.0 * summary.max_kinetic_ratio,
+        summary.max_relative_balance_error,
+        summary.increments
+    );
+    assert!(summary.max_kinetic_ratio < 0.01);
+    assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
+    // 1 %: the level at which an energy error would show in the curves
+    // compared above (docs/explicit.md, "Energy accounting").
+    assert!(summary.max_relative_balance_error < 0.01);
+
+    // Same files as the quasi-static run, plus the energy history.
+    let listing = |d: &Path| {
+        let mut names: Vec<String> = fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        names
+    };
+    let mut expected = listing(&qs_out);
+    expected.extend(["energy.csv".to_string(), "energy.png".to_string()]);
+    expected.sort();
+    assert_eq!(listing(&ex_out), expected);
+    assert_eq!(listing(&qs_out.join("vtu")), listing(&ex_out.join("vtu")));
+    let (preamble, header, rows) = read_csv(&ex_out.join("energy.csv"));
+    assert!(preamble.iter().any(|l| l.starts_with("units:")));
+    assert!(header.starts_with("time [s],displacement [mm],internal [N*mm],kinetic [N*mm]"));
+    assert_eq!(rows.len(), ex.steps);
+    let (_, header, _) = read_csv(&ex_out.join("force_displacement.csv"));
+    assert_eq!(
+        header,
+        "displacement [mm],force [N],time [s],increments [-]"
+    );
+    let json = read_summary(&ex_out);
+    assert_eq!(json["solver"], "explicit");
+    for key in [
+        "increments",
+        "element_cycles_per_second",
+        "initial_critical_time_step",
+        "mass",
+        "max_kinetic_ratio",
+        "max_relative_balance_error",
+        "final_energies",
+        "warnings",
+    ] {
+        assert!(
+            json["explicit"].get(key).is_some(),
+            "explicit.{key} missing"
+        );
+    }
+    assert_eq!(png_size(&ex_out.join("energy.png")), (1800, 550));
+}
+
+/// docs/cases.md `[explicit]`: bad explicit settings name the file, the
+/// line, the key, the value and what was expected.
+#[test]
+fn explicit_settings_are_checked() {
+    let explicit = edit(BASE, &[("title = ", "solver = \"explicit\"\ntitle = ")]);
+    let cases: Vec<(String, &str, &str)> = vec![
+        (
+            edit(BASE, &[("title = ", "solver = \"implicit\"\ntitle = ")]),
+            "solver = ",
+            "solver = \"implicit\": expected \"quasi-static\", \"explicit\"",
+        ),
+        (
+            append(&explicit, "\n[explicit]\ntime_step = 0.0\n"),
+            "time_step = ",
+            "explicit.time_step = 0: expected a time step > 0 s",
+        ),
+        (
+            append(&explicit, "\n[explicit]\nsafety_factor = 1.5\n"),
+            "safety_factor = ",
+            "explicit.safety_factor = 1.5: expected a factor in (0, 1]",
+        ),
+        (
+            append(&explicit, "\n[explicit]\nclamp_speed = -5.0\n"),
+            "clamp_speed = ",
+            "explicit.clamp_speed = -5: expected a speed > 0 mm/s",
+        ),
+        (
+            append(
+                &explicit,
+                "\n[explicit]\nclamp_speed = 5.0\nduration = 1.0\n",
+            ),
+            "duration = ",
+            "either explicit.clamp_speed or explicit.duration, not both",
+        ),
+        (
+            append(&explicit, "\n[explicit]\ndamping = -1.0\n"),
+            "damping = ",
+            "explicit.damping = -1: expected a coefficient ≥ 0 1/s",
+        ),
+        (
+            append(&explicit, "\n[explicit]\nthreads = -1\n"),
+            "threads = ",
+            "explicit.threads = -1: expected a count in 0..=1000000",
+        ),
+        (
+            append(&explicit, "\n[material]\nareal_mass = -0.3\n"),
+            "areal_mass = ",
+            "material.areal_mass = -0.3: expected an areal mass > 0 kg/m²",
+        ),
+        (
+            append(&explicit, "\n[material]\ndensity = 0.0\n"),
+            "density = ",
+            "material.density = 0: expected a density > 0 t/mm³",
+        ),
+        (
+            append(&explicit, "\n[explicit]\nspeed = 5.0\n"),
+            "speed = ",
+            "unknown field `speed`",
+        ),
+    ];
+    for (text, key, expected) in cases {
+        let (msg, file) = case_error(&text);
+        let line = line_of(&text, key);
+        // Range errors read `file:line: key = value: …`; the parser's own
+        // (unknown keys) `… line N …`.
+        let at_line =
+            msg.contains(&format!("{file}:{line}:")) || msg.contains(&format!("line {line}"));
+        assert!(at_line, "message `{msg}` does not name line {line}");
+        assert_mentions(&msg, &[&file, expected]);
+    }
+
+    // A parameter file carries no mass: an explicit run must be told it.
+    let dir = TempDir::new().unwrap();
+    let params = fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/materials/schaefer2024.toml"),
+    )
+    .unwrap();
+    write(&dir.path().join("fabric.toml"), &params);
+    let with_file = append(&explicit, "\n[material]\nparams = \"fabric.toml\"\n");
+    let (msg, file) = case_error_in(dir.path(), &with_file);
+    assert_mentions(
+        &msg,
+        &[&file, "material.areal_mass = (missing)", "explicit solver"],
+    );
+    // The same file with an areal mass, or run quasi-statically, is fine.
+    load(
+        dir.path(),
+        &append(
+            &explicit,
+            "\n[material]\nparams = \"fabric.toml\"\nareal_mass = 0.3\n",
+        ),
+    );
+    let quasi_static = load(
+        dir.path(),
+        &append(BASE, "\n[material]\nparams = \"fabric.toml\"\n"),
+    );
+    assert_eq!(quasi_static.density, None);
+    // 0.30 kg/m² at 0.3 mm is 1.0e-9 t/mm³ (model.md).
+    let default = load(dir.path(), &explicit);
+    assert!((default.density.unwrap() - 1.0e-9).abs() <= 1e-24);
 }

@@ -2,6 +2,8 @@
 //! off-axis tension test is; the solver sees a membrane and Dirichlet
 //! conditions. Field-by-field documentation: `docs/cases.md`.
 
+pub mod explicit;
 pub mod oat;
 
+pub use explicit::{ExplicitSettings, SolverKind};
 pub use oat::{OatCase, OatModel, Zone};

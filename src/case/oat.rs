@@ -10,6 +10,10 @@ use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
+use super::explicit::{
+    DEFAULT_AREAL_MASS, ExplicitRaw, ExplicitSettings, KG_PER_M2_IN_T_PER_MM2, SolverChoice,
+    SolverKind,
+};
 use crate::config::{ConfigError, TomlChecker, parse_toml};
 use crate::material::MaterialSpec;
 use crate::mesh::Mesh;
@@ -30,7 +34,8 @@ struct CaseRaw {
     material: Option<MaterialRaw>,
     loading: LoadingRaw,
     output: Option<OutputRaw>,
-    solver: Option<NewtonParameters>,
+    solver: Option<Spanned<SolverChoice>>,
+    explicit: Option<ExplicitRaw>,
 }
 
 #[derive(Deserialize)]
@@ -58,6 +63,8 @@ struct MeshRaw {
 struct MaterialRaw {
     params: Option<String>,
     thickness: Option<Spanned<f64>>,
+    areal_mass: Option<Spanned<f64>>,
+    density: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -122,8 +129,16 @@ pub struct OatCase {
     pub mdz_size: f64,
     /// Displacement of the contour-map pictures [mm].
     pub contour_displacement: f64,
-    /// Newton parameters.
+    /// Which solver runs the case.
+    pub solver_kind: SolverKind,
+    /// Newton parameters (quasi-static).
     pub solver: NewtonParameters,
+    /// Explicit settings (read when `solver_kind` is explicit).
+    pub explicit: ExplicitSettings,
+    /// Mass density [t/mm³]: from `material.areal_mass` or
+    /// `material.density`, 0.30 kg/m² for the named sets, `None` for a
+    /// parameter file without either (the quasi-static path needs none).
+    pub density: Option<f64>,
 }
 
 /// The zones of the OAT: classic two-family reading of the paper's Section
@@ -207,18 +222,14 @@ impl OatCase {
         let m = &raw.mesh;
         let pattern = match &m.pattern {
             None => GridPattern::RovingDiagonal,
-            Some(p) => match p.get_ref().as_str() {
-                "roving-diagonal" => GridPattern::RovingDiagonal,
-                "both-diagonals" => GridPattern::BothDiagonals,
-                other => {
-                    return Err(check.invalid(
-                        check.line_of(p),
-                        "mesh.pattern",
-                        format!("\"{other}\""),
-                        "\"roving-diagonal\" or \"both-diagonals\"",
-                    ));
-                }
-            },
+            Some(p) => check.choice(
+                p,
+                "mesh.pattern",
+                &[
+                    ("roving-diagonal", GridPattern::RovingDiagonal),
+                    ("both-diagonals", GridPattern::BothDiagonals),
+                ],
+            )?,
         };
         if let (Some(_), Some(p)) = (&m.file, &m.pattern) {
             return Err(check.invalid(
@@ -266,6 +277,9 @@ impl OatCase {
             None => (None, None),
             Some(mr) => (mr.params.clone(), mr.thickness.clone()),
         };
+        let named_set = params
+            .as_ref()
+            .is_none_or(|p| MaterialSpec::named_text(p).is_some());
         let material = match params {
             None => MaterialSpec::default_set(),
             Some(p) if MaterialSpec::named_text(&p).is_some() => MaterialSpec::load(&p)?,
@@ -334,8 +348,67 @@ impl OatCase {
             output_displacements.push(contour_displacement);
             output_displacements.sort_by(f64::total_cmp);
         }
-        let solver = raw.solver.unwrap_or_default();
+        let (solver_kind, solver) = match raw.solver {
+            None => (SolverKind::QuasiStatic, NewtonParameters::default()),
+            Some(choice) => {
+                let line = check.line_of(&choice);
+                match choice.into_inner() {
+                    SolverChoice::Newton(p) => (SolverKind::QuasiStatic, p),
+                    SolverChoice::Method(m) => match m.as_str() {
+                        "quasi-static" => (SolverKind::QuasiStatic, NewtonParameters::default()),
+                        "explicit" => (SolverKind::Explicit, NewtonParameters::default()),
+                        other => {
+                            return Err(check.invalid(
+                                line,
+                                "solver",
+                                format!("\"{other}\""),
+                                "\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs",
+                            ));
+                        }
+                    },
+                }
+            }
+        };
         validate_solver(&solver, source)?;
+        let explicit = ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, displacement)?;
+        let material_raw = raw.material.as_ref();
+        let areal_mass = material_raw.and_then(|m| m.areal_mass.as_ref());
+        let given_density = material_raw.and_then(|m| m.density.as_ref());
+        let density = match (areal_mass, given_density) {
+            (Some(_), Some(d)) => {
+                return Err(check.invalid(
+                    check.line_of(d),
+                    "material.density",
+                    format!("{}", d.get_ref()),
+                    "either material.areal_mass [kg/m²] or material.density [t/mm³], not both",
+                ));
+            }
+            (Some(a), None) => Some(
+                check.range(
+                    a,
+                    "material.areal_mass",
+                    |x| x > 0.0,
+                    "an areal mass > 0 kg/m²",
+                )? * KG_PER_M2_IN_T_PER_MM2
+                    / thickness,
+            ),
+            (None, Some(d)) => Some(check.range(
+                d,
+                "material.density",
+                |x| x > 0.0,
+                "a density > 0 t/mm³ (1.0e-9 for 0.30 kg/m² at 0.3 mm)",
+            )?),
+            (None, None) if named_set => {
+                Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness)
+            }
+            (None, None) => None,
+        };
+        if solver_kind == SolverKind::Explicit && density.is_none() {
+            return Err(check.missing(
+                "material.areal_mass",
+                "the fabric's mass for the explicit solver: material.areal_mass [kg/m²] or material.density [t/mm³] (the 0.30 kg/m² default belongs to the named parameter sets, not to a parameter file)",
+            ));
+        }
         Ok(Self {
             title: raw
                 .title
@@ -351,7 +424,10 @@ impl OatCase {
             output_displacements,
             mdz_size,
             contour_displacement,
+            solver_kind,
             solver,
+            explicit,
+            density,
         })
     }
 

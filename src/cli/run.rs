@@ -1,15 +1,17 @@
 //! `ncform run CASE [--out DIR]`: runs an off-axis tension case with the
-//! quasi-static solver and writes what a user looks at:
+//! quasi-static or the explicit solver and writes what a user looks at:
 //!
 //! - `force_displacement.csv` / `.png`: clamp force vs displacement;
 //! - `mdz_strains.csv` / `.png`: E22, γ, E⊥ averaged over the MDZ;
 //! - `vtu/*.vtu` and `oat.pvd`: the deformed specimen with per-element
 //!   fields at the output displacements, for ParaView;
 //! - `contours.png`: E22, γ, E⊥ on the deformed specimen (paper Fig. 4);
-//! - `summary.json`: forces, steps, iterations, time split, completion.
+//! - `summary.json`: forces, steps, iterations, time split, completion;
+//! - `energy.csv` / `.png` (explicit): internal, kinetic, external work,
+//!   damping and the energy balance error.
 //!
-//! A solve that fails keeps everything up to the last converged step and
-//! marks it incomplete.
+//! A solve that fails keeps everything up to the last converged step (or
+//! output) and marks it incomplete.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -18,14 +20,18 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::case::{OatCase, OatModel};
+use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
 use crate::post::contour::{ContourMap, write_contour_png};
 use crate::post::csv::write_csv;
 use crate::post::fields::{ElementFields, area_mean, element_fields};
 use crate::post::plot::{Panel, Series, write_panels};
 use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
+use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
 use crate::solver::newton::solve_quasi_static;
-use crate::solver::{QuasiStaticResult, RunStatus, SolverTimings, StepRecord};
+use crate::solver::{
+    DofMap, ExplicitRecord, ExplicitState, QuasiStaticResult, RunStatus, SolverTimings,
+    solve_explicit,
+};
 
 /// Displacements whose forces the summary always reports [mm].
 pub const REPORTED_DISPLACEMENTS: [f64; 4] = [20.0, 40.0, 60.0, 80.0];
@@ -43,8 +49,15 @@ pub struct HistoryRow {
     pub mdz_shear_angle_deg: f64,
     /// MDZ mean of E⊥.
     pub mdz_e_perp: f64,
-    /// Newton iterations of the step.
-    pub iterations: usize,
+    /// Newton iterations of the step (quasi-static).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// Time [s] (explicit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
+    /// Time increments so far (explicit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub increments: Option<usize>,
 }
 
 /// The JSON summary of a run.
@@ -58,6 +71,8 @@ pub struct RunSummary {
     pub complete: bool,
     /// Completion details (reason when incomplete).
     pub status: RunStatus,
+    /// The solver that ran.
+    pub solver: SolverKind,
     /// Units of every number here.
     pub units: &'static str,
     /// Material set name and source.
@@ -66,20 +81,63 @@ pub struct RunSummary {
     pub mesh: MeshSummary,
     /// `(displacement [mm], force [N])` at 20/40/60/80 mm (those reached).
     pub forces: Vec<(f64, f64)>,
-    /// Converged steps.
+    /// History rows: converged steps (quasi-static) or outputs (explicit).
     pub steps: usize,
-    /// Newton iterations (all attempts).
+    /// Newton iterations (all attempts; 0 for explicit).
     pub newton_iterations: usize,
-    /// Numeric factorisations.
+    /// Numeric factorisations (0 for explicit).
     pub factorisations: usize,
     /// Time split of the solve [s].
-    pub timings: SolverTimings,
+    pub timings: RunTimings,
+    /// The explicit run's figures (`null` for quasi-static).
+    pub explicit: Option<ExplicitSummary>,
     /// Time writing outputs during and after the solve [s].
     pub output_seconds: f64,
     /// Wall time of the whole run [s].
     pub wall_seconds: f64,
     /// The step history.
     pub history: Vec<HistoryRow>,
+}
+
+/// The time split of either solver [s].
+#[derive(Debug, Clone, Copy, Serialize)]
+#[serde(untagged)]
+pub enum RunTimings {
+    /// Newton: symbolic, assembly, factorisation, solve.
+    QuasiStatic(SolverTimings),
+    /// Explicit: set-up, element and node passes, step estimates, outputs.
+    Explicit(ExplicitTimings),
+}
+
+/// What an explicit run reports besides the common outputs.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExplicitSummary {
+    /// The settings used.
+    pub settings: ExplicitSettings,
+    /// Density [t/mm³].
+    pub density: f64,
+    /// Time increments.
+    pub increments: usize,
+    /// `increments × triangles`.
+    pub element_cycles: u64,
+    /// Element cycles per second of the element and node passes.
+    pub element_cycles_per_second: f64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Estimated critical step at the start, before the safety factor [s].
+    pub initial_critical_time_step: f64,
+    /// Smallest and largest step taken [s].
+    pub time_step_range: (f64, f64),
+    /// Masses [t], with what mass scaling added.
+    pub mass: MassSummary,
+    /// Largest KE/IE from 10 % of the stroke on.
+    pub max_kinetic_ratio: f64,
+    /// Largest relative energy-balance error.
+    pub max_relative_balance_error: f64,
+    /// Energies at the last output [N·mm].
+    pub final_energies: Option<Energies>,
+    /// Warnings (not quasi-static, …).
+    pub warnings: Vec<String>,
 }
 
 /// Mesh size figures.
@@ -91,7 +149,7 @@ pub struct MeshSummary {
     pub triangles: usize,
     /// Free unknowns.
     pub unknowns: usize,
-    /// Tangent non-zeros.
+    /// Tangent non-zeros (0 for explicit: no matrix).
     pub nonzeros: usize,
     /// Largest roving-to-edge angle [deg] (generated meshes).
     pub edge_deviation_deg: Option<f64>,
@@ -129,22 +187,18 @@ impl Progress {
         }
     }
 
-    fn update(&mut self, record: &StepRecord, total: f64) {
+    /// Shows the state at clamp displacement `load` with force `reaction`
+    /// and a solver-specific `detail`.
+    fn update(&mut self, load: f64, reaction: f64, detail: &str, total: f64) {
         match self {
             Progress::Bar(bar) => {
-                bar.set_position((record.load * 1000.0).round() as u64);
-                bar.set_message(format!(
-                    "{:.2} mm, F = {:.3} N, step {}, {} it",
-                    record.load, record.reaction, record.step, record.iterations
-                ));
+                bar.set_position((load * 1000.0).round() as u64);
+                bar.set_message(format!("{load:.2} mm, F = {reaction:.3} N, {detail}"));
             }
             Progress::Lines { next } => {
-                if record.load + 1e-9 >= *next {
-                    eprintln!(
-                        "step {:4}: d = {:7.3} mm, F = {:10.4} N, {} iterations",
-                        record.step, record.load, record.reaction, record.iterations
-                    );
-                    *next = record.load + 0.1 * total;
+                if load + 1e-9 >= *next {
+                    eprintln!("d = {load:7.3} mm, F = {reaction:10.4} N, {detail}");
+                    *next = load + 0.1 * total;
                 }
             }
             Progress::Quiet => {}
@@ -235,6 +289,135 @@ struct Snapshot {
     fields: Vec<ElementFields>,
 }
 
+/// What the solvers' output callbacks feed: history rows, VTU states and
+/// the contour snapshot, the same for both solvers.
+struct OutputSink<'a> {
+    case: &'a OatCase,
+    built: &'a OatModel,
+    out: &'a Path,
+    history: Vec<HistoryRow>,
+    pvd: Vec<PvdEntry>,
+    snapshot: Option<Snapshot>,
+    io_error: Option<String>,
+    seconds: f64,
+    tolerance: f64,
+}
+
+impl<'a> OutputSink<'a> {
+    fn new(case: &'a OatCase, built: &'a OatModel, out: &'a Path) -> Self {
+        Self {
+            case,
+            built,
+            out,
+            history: Vec::new(),
+            pvd: Vec::new(),
+            snapshot: None,
+            io_error: None,
+            seconds: 0.0,
+            tolerance: 1e-9 * case.displacement,
+        }
+    }
+
+    /// Records the state `u` at clamp displacement `load` with force
+    /// `reaction`; `row` fills the solver-specific columns.
+    fn record(&mut self, load: f64, reaction: f64, u: &[f64], row: impl Fn(&mut HistoryRow)) {
+        let start = Instant::now();
+        let (case, built) = (self.case, self.built);
+        let fields = match element_fields(&built.model, u) {
+            Ok(f) => f,
+            Err((e, err)) => {
+                self.io_error.get_or_insert(format!("element {e}: {err}"));
+                return;
+            }
+        };
+        let mean =
+            |f: fn(&ElementFields) -> f64| area_mean(&built.model, &built.mdz, |e| f(&fields[e]));
+        let mut history_row = HistoryRow {
+            displacement: load,
+            force: reaction,
+            mdz_e22: mean(|f| f.e22),
+            mdz_shear_angle_deg: mean(|f| f.shear_angle_deg),
+            mdz_e_perp: mean(|f| f.e_perp),
+            iterations: None,
+            time: None,
+            increments: None,
+        };
+        row(&mut history_row);
+        self.history.push(history_row);
+        if case
+            .output_displacements
+            .iter()
+            .any(|d| (d - load).abs() <= self.tolerance)
+        {
+            let name = format!("oat_d{load:07.3}.vtu");
+            let path = self.out.join("vtu").join(&name);
+            if let Err(e) = write_state_vtu(&path, case, built, u, &fields, load) {
+                self.io_error.get_or_insert(e);
+            }
+            self.pvd.push(PvdEntry {
+                time: load,
+                file: format!("vtu/{name}"),
+            });
+        }
+        if load <= case.contour_displacement + self.tolerance {
+            self.snapshot = Some(Snapshot {
+                displacement: load,
+                u: u.to_vec(),
+                fields,
+            });
+        }
+        self.seconds += start.elapsed().as_secs_f64();
+    }
+
+    /// Writes the PVD, the histories and the contour maps.
+    fn finish(&mut self, status: &RunStatus, solver: SolverKind) -> Result<(), String> {
+        if let Some(e) = self.io_error.take() {
+            return Err(e);
+        }
+        let start = Instant::now();
+        let (case, out) = (self.case, self.out);
+        write_pvd(
+            &out.join("oat.pvd"),
+            &self.pvd,
+            &[
+                format!("ncform: {} ({})", case.title, case.source),
+                "time = clamp displacement [mm]; units: mm, N, MPa".into(),
+            ],
+        )
+        .map_err(|e| io_err(&out.join("oat.pvd"), e))?;
+        write_histories(case, out, &self.history, status, solver)?;
+        if let Some(snap) = &self.snapshot {
+            write_contours(self.built, out, snap)?;
+        }
+        self.seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Forces at the reported displacements that were reached.
+    fn reported_forces(&self) -> Vec<(f64, f64)> {
+        REPORTED_DISPLACEMENTS
+            .iter()
+            .filter_map(|d| {
+                self.history
+                    .iter()
+                    .find(|h| (h.displacement - d).abs() <= self.tolerance)
+                    .map(|h| (*d, h.force))
+            })
+            .collect()
+    }
+}
+
+/// What each solver hands back to the summary.
+struct SolveReport {
+    status: RunStatus,
+    unknowns: usize,
+    nonzeros: usize,
+    newton_iterations: usize,
+    factorisations: usize,
+    timings: RunTimings,
+    explicit: Option<ExplicitSummary>,
+}
+
 /// Runs a case and writes its outputs into `out`. Returns the summary; a
 /// solve that stopped early is `complete = false` with its reason.
 ///
@@ -245,131 +428,264 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
     let built = case.build()?;
     std::fs::create_dir_all(out.join("vtu")).map_err(|e| io_err(out, e))?;
     let dofs = OatCase::dofs(&built);
-    let mut u = vec![0.0; dofs.total];
     let mut stops: Vec<f64> = case.output_displacements.clone();
     stops.extend(
         REPORTED_DISPLACEMENTS
             .iter()
             .filter(|d| **d <= case.displacement),
     );
-    let mut history: Vec<HistoryRow> = Vec::new();
-    let mut pvd: Vec<PvdEntry> = Vec::new();
-    let mut output_seconds = 0.0;
-    let mut io_error: Option<String> = None;
-    let mut snapshot: Option<Snapshot> = None;
-    let tolerance = 1e-9 * case.displacement;
+    let mut sink = OutputSink::new(case, &built, out);
+    let report = match case.solver_kind {
+        SolverKind::QuasiStatic => {
+            run_quasi_static(case, &built, dofs, &stops, &mut sink, &mut progress)?
+        }
+        SolverKind::Explicit => {
+            run_explicit(case, &built, &dofs, &stops, &mut sink, &mut progress)?
+        }
+    };
+    progress.finish();
+    sink.finish(&report.status, case.solver_kind)?;
+    if let Some(explicit) = &report.explicit {
+        for warning in &explicit.warnings {
+            eprintln!("warning: {warning}");
+        }
+    }
+    let summary = RunSummary {
+        case: case.source.clone(),
+        title: case.title.clone(),
+        complete: report.status == RunStatus::Complete,
+        status: report.status.clone(),
+        solver: case.solver_kind,
+        units: UNITS,
+        material: format!("{} ({})", case.material.name, case.material.source),
+        mesh: MeshSummary {
+            nodes: built.mesh.nodes.len(),
+            triangles: built.mesh.triangles.len(),
+            unknowns: report.unknowns,
+            nonzeros: report.nonzeros,
+            edge_deviation_deg: built.edge_deviation_deg,
+            mdz_elements: built.mdz.len(),
+        },
+        forces: sink.reported_forces(),
+        steps: sink.history.len(),
+        newton_iterations: report.newton_iterations,
+        factorisations: report.factorisations,
+        timings: report.timings,
+        explicit: report.explicit,
+        output_seconds: sink.seconds,
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        history: std::mem::take(&mut sink.history),
+    };
+    let path = out.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| io_err(&path, e))?;
+    std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e))?;
+    Ok(summary)
+}
 
+fn run_quasi_static(
+    case: &OatCase,
+    built: &OatModel,
+    dofs: DofMap,
+    stops: &[f64],
+    sink: &mut OutputSink,
+    progress: &mut Progress,
+) -> Result<SolveReport, String> {
+    let mut u = vec![0.0; dofs.total];
     let result: QuasiStaticResult = solve_quasi_static(
         &built.model,
         dofs,
         true,
         &case.solver,
         case.displacement,
-        &stops,
+        stops,
         &mut u,
         |record, u| {
-            let start = Instant::now();
-            progress.update(record, case.displacement);
-            let fields = match element_fields(&built.model, u) {
-                Ok(f) => f,
-                Err((e, err)) => {
-                    io_error.get_or_insert(format!("element {e}: {err}"));
-                    return;
-                }
-            };
-            let mean = |f: fn(&ElementFields) -> f64| {
-                area_mean(&built.model, &built.mdz, |e| f(&fields[e]))
-            };
-            history.push(HistoryRow {
-                displacement: record.load,
-                force: record.reaction,
-                mdz_e22: mean(|f| f.e22),
-                mdz_shear_angle_deg: mean(|f| f.shear_angle_deg),
-                mdz_e_perp: mean(|f| f.e_perp),
-                iterations: record.iterations,
+            let detail = format!("step {}, {} iterations", record.step, record.iterations);
+            progress.update(record.load, record.reaction, &detail, case.displacement);
+            sink.record(record.load, record.reaction, u, |row| {
+                row.iterations = Some(record.iterations);
             });
-            if case
-                .output_displacements
-                .iter()
-                .any(|d| (d - record.load).abs() <= tolerance)
-            {
-                let name = format!("oat_d{:07.3}.vtu", record.load);
-                let path = out.join("vtu").join(&name);
-                if let Err(e) = write_state_vtu(&path, case, &built, u, &fields, record.load) {
-                    io_error.get_or_insert(e);
-                }
-                pvd.push(PvdEntry {
-                    time: record.load,
-                    file: format!("vtu/{name}"),
-                });
-            }
-            if record.load <= case.contour_displacement + tolerance {
-                snapshot = Some(Snapshot {
-                    displacement: record.load,
-                    u: u.to_vec(),
-                    fields,
-                });
-            }
-            output_seconds += start.elapsed().as_secs_f64();
         },
     )?;
-    progress.finish();
-    if let Some(e) = io_error {
-        return Err(e);
-    }
-    let start = Instant::now();
-    write_pvd(
-        &out.join("oat.pvd"),
-        &pvd,
-        &[
-            format!("ncform: {} ({})", case.title, case.source),
-            "time = clamp displacement [mm]; units: mm, N, MPa".into(),
-        ],
-    )
-    .map_err(|e| io_err(&out.join("oat.pvd"), e))?;
-    write_histories(case, out, &history, &result.status)?;
-    if let Some(snap) = &snapshot {
-        write_contours(&built, out, snap)?;
-    }
-    output_seconds += start.elapsed().as_secs_f64();
-
-    let forces = REPORTED_DISPLACEMENTS
-        .iter()
-        .filter_map(|d| {
-            history
-                .iter()
-                .find(|h| (h.displacement - d).abs() <= tolerance)
-                .map(|h| (*d, h.force))
-        })
-        .collect();
-    let summary = RunSummary {
-        case: case.source.clone(),
-        title: case.title.clone(),
-        complete: result.status == RunStatus::Complete,
-        status: result.status.clone(),
-        units: UNITS,
-        material: format!("{} ({})", case.material.name, case.material.source),
-        mesh: MeshSummary {
-            nodes: built.mesh.nodes.len(),
-            triangles: built.mesh.triangles.len(),
-            unknowns: result.unknowns,
-            nonzeros: result.nonzeros,
-            edge_deviation_deg: built.edge_deviation_deg,
-            mdz_elements: built.mdz.len(),
-        },
-        forces,
-        steps: result.steps.len(),
+    Ok(SolveReport {
+        status: result.status,
+        unknowns: result.unknowns,
+        nonzeros: result.nonzeros,
         newton_iterations: result.newton_iterations,
         factorisations: result.factorisations,
-        timings: result.timings,
-        output_seconds,
-        wall_seconds: wall.elapsed().as_secs_f64(),
-        history,
+        timings: RunTimings::QuasiStatic(result.timings),
+        explicit: None,
+    })
+}
+
+fn run_explicit(
+    case: &OatCase,
+    built: &OatModel,
+    dofs: &DofMap,
+    stops: &[f64],
+    sink: &mut OutputSink,
+    progress: &mut Progress,
+) -> Result<SolveReport, String> {
+    let density = case.density.ok_or_else(|| {
+        format!(
+            "{}: the explicit solver needs material.areal_mass",
+            case.source
+        )
+    })?;
+    let params = case.explicit.parameters(density);
+    let total = case.displacement;
+    // History rows every `history_interval`, plus the VTU and reported
+    // displacements, as times of the clamp amplitude.
+    let interval = case.explicit.history_interval;
+    let rows = (total / interval).round().max(1.0) as usize;
+    let mut displacements: Vec<f64> = (1..=rows).map(|k| total * k as f64 / rows as f64).collect();
+    displacements.extend_from_slice(stops);
+    let times: Vec<f64> = displacements
+        .iter()
+        .map(|d| params.time_of_load_fraction(d / total))
+        .collect();
+    let mut state = ExplicitState::at_rest(dofs.total);
+    let result = solve_explicit(
+        &built.model,
+        dofs,
+        &params,
+        total,
+        &times,
+        &mut state,
+        |record, u| {
+            let detail = format!(
+                "t = {:.4} s, {} increments, KE/IE = {:.2e}",
+                record.time,
+                record.increment,
+                record.energies.kinetic_ratio()
+            );
+            progress.update(record.load, record.reaction, &detail, total);
+            sink.record(record.load, record.reaction, u, |row| {
+                row.time = Some(record.time);
+                row.increments = Some(record.increment);
+            });
+        },
+    )
+    .map_err(|e| format!("{}: {e}", case.source))?;
+    write_energy(case, sink.out, &result.records, &result.status)?;
+    let passes = result.timings.element_pass + result.timings.node_pass;
+    Ok(SolveReport {
+        status: result.status.clone(),
+        unknowns: dofs.n_free(),
+        nonzeros: 0,
+        newton_iterations: 0,
+        factorisations: 0,
+        timings: RunTimings::Explicit(result.timings),
+        explicit: Some(ExplicitSummary {
+            settings: case.explicit.clone(),
+            density,
+            increments: result.increments,
+            element_cycles: result.element_cycles,
+            element_cycles_per_second: if passes > 0.0 {
+                result.element_cycles as f64 / passes
+            } else {
+                0.0
+            },
+            threads: result.threads,
+            initial_critical_time_step: result.initial_critical_time_step,
+            time_step_range: result.time_step_range,
+            mass: result.mass,
+            max_kinetic_ratio: result.max_kinetic_ratio,
+            max_relative_balance_error: result.max_relative_balance_error,
+            final_energies: result.records.last().map(|r| r.energies),
+            warnings: result.warnings,
+        }),
+    })
+}
+
+/// `energy.csv` and `energy.png`: the energy history of an explicit run.
+fn write_energy(
+    case: &OatCase,
+    out: &Path,
+    records: &[ExplicitRecord],
+    status: &RunStatus,
+) -> Result<(), String> {
+    let path = out.join("energy.csv");
+    write_csv(
+        &path,
+        &[
+            "ncform run: energy history of the explicit solver".to_string(),
+            format!("case: {} ({})", case.title, case.source),
+            status_line(status),
+            "balance error = internal + kinetic + damping - external work - initial energy; relative to the largest of those".to_string(),
+            format!("units: {UNITS}; energies in N*mm (= mJ)"),
+        ],
+        &[
+            "time [s]",
+            "displacement [mm]",
+            "internal [N*mm]",
+            "kinetic [N*mm]",
+            "external work [N*mm]",
+            "damping [N*mm]",
+            "balance error [N*mm]",
+            "relative balance error [-]",
+            "kinetic/internal [-]",
+        ],
+        &records
+            .iter()
+            .map(|r| {
+                let e = &r.energies;
+                vec![
+                    r.time,
+                    r.load,
+                    e.internal,
+                    e.kinetic,
+                    e.external_work,
+                    e.damping,
+                    e.balance_error,
+                    e.relative_balance_error,
+                    e.kinetic_ratio(),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    )
+    .map_err(|e| io_err(&path, e))?;
+    let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
+        label: label.to_string(),
+        points: records.iter().map(|r| (r.load, f(r))).collect(),
     };
-    let path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| io_err(&path, e))?;
-    std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e))?;
-    Ok(summary)
+    let suffix = if matches!(status, RunStatus::Complete) {
+        ""
+    } else {
+        " (INCOMPLETE)"
+    };
+    write_panels(
+        &out.join("energy.png"),
+        &[
+            Panel {
+                title: format!("energies{suffix}"),
+                x_label: "clamp displacement [mm]".into(),
+                y_label: "energy [N*mm]".into(),
+                series: vec![
+                    series("internal", |r| r.energies.internal),
+                    series("external work", |r| r.energies.external_work),
+                    series("kinetic", |r| r.energies.kinetic),
+                    series("damping", |r| r.energies.damping),
+                ],
+            },
+            Panel {
+                title: "kinetic / internal energy".into(),
+                x_label: "clamp displacement [mm]".into(),
+                y_label: "KE / IE [%]".into(),
+                series: vec![series("KE/IE", |r| 100.0 * r.energies.kinetic_ratio())],
+            },
+            Panel {
+                title: "energy balance error".into(),
+                x_label: "clamp displacement [mm]".into(),
+                y_label: "relative balance error [-]".into(),
+                series: vec![series("|balance| / scale", |r| {
+                    r.energies.relative_balance_error
+                })],
+            },
+        ],
+        (1, 3),
+        (1800, 550),
+    )
 }
 
 fn status_line(status: &RunStatus) -> String {
@@ -390,6 +706,7 @@ fn write_histories(
     out: &Path,
     history: &[HistoryRow],
     status: &RunStatus,
+    solver: SolverKind,
 ) -> Result<(), String> {
     let preamble = |what: &str| {
         vec![
@@ -404,14 +721,42 @@ fn write_histories(
         ]
     };
     let path = out.join("force_displacement.csv");
+    let (header, rows): (Vec<&str>, Vec<Vec<f64>>) = match solver {
+        SolverKind::QuasiStatic => (
+            vec!["displacement [mm]", "force [N]", "iterations [-]"],
+            history
+                .iter()
+                .map(|h| vec![h.displacement, h.force, h.iterations.unwrap_or(0) as f64])
+                .collect(),
+        ),
+        SolverKind::Explicit => (
+            vec![
+                "displacement [mm]",
+                "force [N]",
+                "time [s]",
+                "increments [-]",
+            ],
+            history
+                .iter()
+                .map(|h| {
+                    vec![
+                        h.displacement,
+                        h.force,
+                        h.time.unwrap_or(0.0),
+                        h.increments.unwrap_or(0) as f64,
+                    ]
+                })
+                .collect(),
+        ),
+    };
     write_csv(
         &path,
-        &preamble("clamp force vs clamp displacement"),
-        &["displacement [mm]", "force [N]", "iterations [-]"],
-        &history
-            .iter()
-            .map(|h| vec![h.displacement, h.force, h.iterations as f64])
-            .collect::<Vec<_>>(),
+        &preamble(match solver {
+            SolverKind::QuasiStatic => "clamp force vs clamp displacement (quasi-static)",
+            SolverKind::Explicit => "clamp force vs clamp displacement (explicit dynamics)",
+        }),
+        &header,
+        &rows,
     )
     .map_err(|e| io_err(&path, e))?;
     let path = out.join("mdz_strains.csv");

@@ -114,9 +114,23 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             } else {
                 format!("; {}", forces.join(", "))
             };
+            let work = match &summary.explicit {
+                None => format!(
+                    "{} steps, {} Newton iterations",
+                    summary.steps, summary.newton_iterations
+                ),
+                Some(e) => format!(
+                    "explicit: {} increments, {:.1} M element-cycles/s on {} threads, max KE/IE {:.2} %, energy balance {:.1e}",
+                    e.increments,
+                    e.element_cycles_per_second / 1e6,
+                    e.threads,
+                    100.0 * e.max_kinetic_ratio,
+                    e.max_relative_balance_error
+                ),
+            };
             println!(
-                "{}: {} steps, {} Newton iterations, {:.2} s{forces}",
-                spec.title, summary.steps, summary.newton_iterations, summary.wall_seconds
+                "{}: {work}, {:.2} s{forces}",
+                spec.title, summary.wall_seconds
             );
             println!("results in {}", out.display());
             if summary.complete {

@@ -191,6 +191,7 @@ struct Buffers {
     internal: Vec<f64>,
     element_energy: Vec<f64>,
     partial: Vec<f64>,
+    damping_partial: Vec<f64>,
 }
 
 /// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
@@ -271,6 +272,7 @@ fn integrate(
         internal: vec![0.0; dofs.total],
         element_energy: vec![0.0; n_elements],
         partial: vec![0.0; system.node_blocks()],
+        damping_partial: vec![0.0; system.node_blocks()],
     };
     let mut times: Vec<f64> = output_times
         .iter()
@@ -283,10 +285,11 @@ fn integrate(
 
     let u = &mut state.u;
     let v = &mut state.v;
-    // Prescribed dofs at λ(0).
+    // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
+    // initial state says.
     let load_at = |t: f64| final_load * params.load_fraction(t);
-    for &(dof, p) in &system.driven {
-        u[dof] = p * load_at(0.0);
+    for c in &dofs.constrained {
+        u[c.dof] = c.per_unit_load * load_at(0.0);
     }
     system
         .element_forces(u, &mut buffers.forces)
@@ -319,7 +322,7 @@ fn integrate(
                                 u: &[f64],
                                 v: &[f64],
                                 half_step: f64|
-     -> Result<(f64, f64), super::assembly::ElementFailure> {
+     -> Result<(f64, f64, f64), super::assembly::ElementFailure> {
         system.gather_with_kinetic(
             &buffers.forces,
             v,
@@ -327,15 +330,17 @@ fn integrate(
             params.damping,
             &mut buffers.internal,
             &mut buffers.partial,
+            &mut buffers.damping_partial,
         );
         let kinetic: f64 = buffers.partial.iter().sum();
+        let half_step_damping: f64 = buffers.damping_partial.iter().sum();
         system.strain_energies(u, &mut buffers.element_energy)?;
         let internal: f64 = buffers.element_energy.iter().sum();
-        Ok((kinetic, internal))
+        Ok((kinetic, internal, half_step_damping))
     };
     {
         // At t = 0 the velocity is v_0 itself: no half step.
-        let (kinetic, internal) = kinetic_and_internal(&system, &mut buffers, u, v, 0.0)
+        let (kinetic, internal, _) = kinetic_and_internal(&system, &mut buffers, u, v, 0.0)
             .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
         energies.kinetic = kinetic;
         energies.internal = internal;
@@ -412,7 +417,7 @@ fn integrate(
 
         if lands {
             let clock = Instant::now();
-            let (kinetic, internal) =
+            let (kinetic, internal, half_step_damping) =
                 match kinetic_and_internal(&system, &mut buffers, u, v, 0.5 * dt) {
                     Ok(pair) => pair,
                     Err(failure) => {
@@ -423,18 +428,22 @@ fn integrate(
                         };
                     }
                 };
-            energies.kinetic = kinetic;
-            energies.internal = internal;
-            energies.balance(initial_energy);
-            max_balance = max_balance.max(energies.relative_balance_error);
+            // The reported energies are at t_n: the running damping sum
+            // reaches t_{n−½}, the last half step is added for the report.
+            let mut reported = energies;
+            reported.kinetic = kinetic;
+            reported.internal = internal;
+            reported.damping += half_step_damping;
+            reported.balance(initial_energy);
+            max_balance = max_balance.max(reported.relative_balance_error);
             if load.abs() >= ke_check_from && final_load != 0.0 {
-                let ratio = energies.kinetic_ratio();
+                let ratio = reported.kinetic_ratio();
                 if ratio > params.kinetic_energy_warning
                     && max_kinetic_ratio <= params.kinetic_energy_warning
                 {
                     warnings.push(format!(
                         "not quasi-static: kinetic energy {:.3e} N·mm is {:.2} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {:.2} % warning level; lower the loading speed or the mass scaling",
-                        energies.kinetic,
+                        reported.kinetic,
                         100.0 * ratio,
                         100.0 * params.kinetic_energy_warning
                     ));
@@ -447,7 +456,7 @@ fn integrate(
                 load,
                 reaction,
                 time_step,
-                energies,
+                energies: reported,
             };
             records.push(record);
             on_output(&record, u);

@@ -105,7 +105,7 @@ pub struct ExplicitParameters {
 
 impl ExplicitParameters {
     /// Defaults for a run of duration `duration` [s] at density `density`
-    /// [t/mm³]: smooth step, safety factor 0.9 updated every 10 steps, no
+    /// [t/mm³]: smooth step, safety factor 0.9 updated every 100 steps, no
     /// mass scaling, no damping, warning at KE > 1 % of IE, all cores.
     pub fn new(density: f64, duration: f64) -> Self {
         Self {

@@ -1,0 +1,251 @@
+//! The solver choice of a case file and the `[explicit]` table: how a user
+//! asks for the explicit path and tunes it (`docs/cases.md`).
+
+use serde::de::{self, Deserializer, MapAccess, Visitor};
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+use crate::config::{ConfigError, TomlChecker};
+use crate::solver::NewtonParameters;
+use crate::solver::explicit::{Amplitude, ExplicitParameters, TimeStepControl};
+
+/// Areal mass of the paper's fabric [kg/m²] (model.md), the default for the
+/// named parameter sets.
+pub const DEFAULT_AREAL_MASS: f64 = 0.30;
+/// `1 kg/m² = 1e-9 t/mm²`.
+pub const KG_PER_M2_IN_T_PER_MM2: f64 = 1.0e-9;
+/// Default mean clamp speed of an explicit OAT [mm/s]: slow enough for a
+/// kinetic energy below 1 % of the internal energy from 10 % of the stroke
+/// on, in the 45° cross-check (docs/explicit.md).
+pub const DEFAULT_CLAMP_SPEED: f64 = 100.0;
+/// Default number of history rows over the stroke of an explicit run.
+pub const DEFAULT_HISTORY_ROWS: f64 = 160.0;
+
+/// The top-level `solver` key: a method name, or the `[solver]` table of
+/// Newton knobs (which implies the quasi-static method).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolverChoice {
+    /// `solver = "quasi-static"` or `solver = "explicit"`.
+    Method(String),
+    /// `[solver]` with Newton knobs.
+    Newton(NewtonParameters),
+}
+
+impl<'de> Deserialize<'de> for SolverChoice {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct ChoiceVisitor;
+        impl<'de> Visitor<'de> for ChoiceVisitor {
+            type Value = SolverChoice;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<SolverChoice, E> {
+                Ok(SolverChoice::Method(v.to_string()))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<SolverChoice, A::Error> {
+                NewtonParameters::deserialize(de::value::MapAccessDeserializer::new(map))
+                    .map(SolverChoice::Newton)
+            }
+        }
+        deserializer.deserialize_any(ChoiceVisitor)
+    }
+}
+
+/// Which solver a case runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverKind {
+    /// Newton with load stepping (`src/solver/newton.rs`).
+    QuasiStatic,
+    /// Central differences (`src/solver/explicit/`).
+    Explicit,
+}
+
+/// The `[explicit]` table as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ExplicitRaw {
+    clamp_speed: Option<Spanned<f64>>,
+    duration: Option<Spanned<f64>>,
+    amplitude: Option<Spanned<String>>,
+    safety_factor: Option<Spanned<f64>>,
+    time_step: Option<Spanned<f64>>,
+    time_step_update_interval: Option<Spanned<i64>>,
+    mass_scaling_time_step: Option<Spanned<f64>>,
+    damping: Option<Spanned<f64>>,
+    kinetic_energy_warning: Option<Spanned<f64>>,
+    history_interval: Option<Spanned<f64>>,
+    threads: Option<Spanned<i64>>,
+}
+
+/// Validated explicit settings of a case.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExplicitSettings {
+    /// Duration of the stroke [s] (`displacement / clamp_speed`).
+    pub duration: f64,
+    /// Mean clamp speed [mm/s].
+    pub clamp_speed: f64,
+    /// The shape of the clamp motion.
+    pub amplitude: Amplitude,
+    /// Time-step control.
+    pub time_step: TimeStepControl,
+    /// Mass-scaling target step [s].
+    pub mass_scaling_time_step: Option<f64>,
+    /// Mass-proportional damping `α` [1/s].
+    pub damping: f64,
+    /// KE/IE warning level.
+    pub kinetic_energy_warning: f64,
+    /// Clamp displacement between history rows [mm].
+    pub history_interval: f64,
+    /// Worker threads (0: all).
+    pub threads: usize,
+}
+
+impl ExplicitSettings {
+    /// Validates the table for a stroke of `displacement` [mm]; `None`
+    /// gives the defaults.
+    ///
+    /// # Errors
+    /// A value out of range, or both `clamp_speed` and `duration`, naming
+    /// the file, line, key and value.
+    pub(super) fn from_raw(
+        raw: Option<&ExplicitRaw>,
+        check: &TomlChecker,
+        displacement: f64,
+    ) -> Result<Self, ConfigError> {
+        let empty = ExplicitRaw {
+            clamp_speed: None,
+            duration: None,
+            amplitude: None,
+            safety_factor: None,
+            time_step: None,
+            time_step_update_interval: None,
+            mass_scaling_time_step: None,
+            damping: None,
+            kinetic_energy_warning: None,
+            history_interval: None,
+            threads: None,
+        };
+        let raw = raw.unwrap_or(&empty);
+        let positive =
+            |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+        let clamp_speed = match (&raw.clamp_speed, &raw.duration) {
+            (Some(_), Some(d)) => {
+                return Err(check.invalid(
+                    check.line_of(d),
+                    "explicit.duration",
+                    format!("{}", d.get_ref()),
+                    "either explicit.clamp_speed or explicit.duration, not both",
+                ));
+            }
+            (Some(v), None) => positive(v, "explicit.clamp_speed", "a speed > 0 mm/s")?,
+            (None, Some(d)) => displacement / positive(d, "explicit.duration", "a duration > 0 s")?,
+            (None, None) => DEFAULT_CLAMP_SPEED,
+        };
+        let amplitude = match &raw.amplitude {
+            None => Amplitude::SmoothStep,
+            Some(a) => check.choice(
+                a,
+                "explicit.amplitude",
+                &[
+                    ("smooth-step", Amplitude::SmoothStep),
+                    ("linear", Amplitude::Linear),
+                ],
+            )?,
+        };
+        let time_step = match (&raw.time_step, &raw.safety_factor) {
+            (Some(dt), Some(_)) => {
+                return Err(check.invalid(
+                    check.line_of(dt),
+                    "explicit.time_step",
+                    format!("{}", dt.get_ref()),
+                    "either explicit.time_step (fixed) or explicit.safety_factor (stable), not both",
+                ));
+            }
+            (Some(dt), None) => TimeStepControl::Fixed {
+                time_step: positive(dt, "explicit.time_step", "a time step > 0 s")?,
+            },
+            (None, safety) => TimeStepControl::Stable {
+                safety_factor: match safety {
+                    None => 0.9,
+                    Some(s) => check.range(
+                        s,
+                        "explicit.safety_factor",
+                        |x| x > 0.0 && x <= 1.0,
+                        "a factor in (0, 1]",
+                    )?,
+                },
+                update_interval: match &raw.time_step_update_interval {
+                    None => 100,
+                    Some(n) => count(check, n, "explicit.time_step_update_interval", 1)?,
+                },
+            },
+        };
+        let mass_scaling_time_step = raw
+            .mass_scaling_time_step
+            .as_ref()
+            .map(|v| positive(v, "explicit.mass_scaling_time_step", "a time step > 0 s"))
+            .transpose()?;
+        let damping = match &raw.damping {
+            None => 0.0,
+            Some(v) => check.range(v, "explicit.damping", |x| x >= 0.0, "a coefficient ≥ 0 1/s")?,
+        };
+        let kinetic_energy_warning = match &raw.kinetic_energy_warning {
+            None => 0.01,
+            Some(v) => positive(v, "explicit.kinetic_energy_warning", "a fraction > 0")?,
+        };
+        let history_interval = match &raw.history_interval {
+            None => displacement / DEFAULT_HISTORY_ROWS,
+            Some(v) => check.range(
+                v,
+                "explicit.history_interval",
+                |x| x > 0.0 && x <= displacement,
+                &format!("a clamp displacement in (0, {displacement}] mm"),
+            )?,
+        };
+        let threads = match &raw.threads {
+            None => 0,
+            Some(n) => count(check, n, "explicit.threads", 0)?,
+        };
+        Ok(Self {
+            duration: displacement / clamp_speed,
+            clamp_speed,
+            amplitude,
+            time_step,
+            mass_scaling_time_step,
+            damping,
+            kinetic_energy_warning,
+            history_interval,
+            threads,
+        })
+    }
+
+    /// The solver parameters for density `density` [t/mm³].
+    pub fn parameters(&self, density: f64) -> ExplicitParameters {
+        ExplicitParameters {
+            density,
+            duration: self.duration,
+            amplitude: self.amplitude,
+            time_step: self.time_step,
+            mass_scaling_target: self.mass_scaling_time_step,
+            damping: self.damping,
+            kinetic_energy_warning: self.kinetic_energy_warning,
+            check_inversion: true,
+            threads: self.threads,
+        }
+    }
+}
+
+fn count(check: &TomlChecker, v: &Spanned<i64>, key: &str, min: i64) -> Result<usize, ConfigError> {
+    let n = *v.get_ref();
+    if (min..=1_000_000).contains(&n) {
+        Ok(n as usize)
+    } else {
+        Err(check.invalid(
+            check.line_of(v),
+            key,
+            n.to_string(),
+            &format!("a count in {min}..=1000000"),
+        ))
+    }
+}
