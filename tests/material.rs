@@ -18,54 +18,7 @@ use ncform::material::{
     Sym2, Tangent, TermBranch, UdNcf,
 };
 
-/// Every term with a transition and a lock, moduli of order one, a
-/// non-integer coupling exponent: no term hides under the 1000 MPa roving
-/// modulus, and k11″ is exercised away from e11 = 2.
-const BALANCED: &str = r#"
-law = "ud-ncf"
-name = "balanced-test"
-[w4]
-c_ini = 2.0
-s_ini = 0.02
-c_mid = 0.5
-delta_s_mid = 0.01
-c_lock = 30.0
-i_lock = 0.03
-[w6]
-c_ini = 1.0
-s_ini = 0.1
-c_mid = 0.2
-delta_s_mid = 0.05
-c_lock = 5.0
-i_lock = 0.6
-[w8]
-c_ini = 1.5
-s_ini = 0.1
-c_mid = 3.0
-delta_s_mid = 0.2
-c_lock = 4.0
-i_lock = 0.4
-[w11]
-c_ini = 0.8
-s_ini = 0.05
-c_mid = 2.0
-delta_s_mid = 0.1
-c_lock = 10.0
-i_lock = 0.5
-[coupling]
-k_min = 0.3
-s11 = 6.0
-e11 = 2.5
-"#;
-
-const SVK: &str = r#"
-law = "orthotropic-svk"
-[svk]
-e1 = 50.0
-e2 = 5.0
-nu12 = 0.3
-g12 = 1.0
-"#;
+use ncform::material::diagnostics::{BALANCED_TEST_SET as BALANCED, SVK_TEST_SET as SVK};
 
 fn balanced() -> MaterialSpec {
     MaterialSpec::from_toml_str(BALANCED, "balanced-test").expect("valid test set")

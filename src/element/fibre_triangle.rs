@@ -401,53 +401,7 @@ mod tests {
     use super::*;
     use crate::material::{Invariants, Material, MaterialSpec, UdNcf};
 
-    /// Every term with a transition and a lock, moduli of order one, a
-    /// non-integer coupling exponent (as in `tests/material.rs`).
-    const BALANCED: &str = r#"
-law = "ud-ncf"
-name = "balanced-test"
-[w4]
-c_ini = 2.0
-s_ini = 0.02
-c_mid = 0.5
-delta_s_mid = 0.01
-c_lock = 30.0
-i_lock = 0.03
-[w6]
-c_ini = 1.0
-s_ini = 0.1
-c_mid = 0.2
-delta_s_mid = 0.05
-c_lock = 5.0
-i_lock = 0.6
-[w8]
-c_ini = 1.5
-s_ini = 0.1
-c_mid = 3.0
-delta_s_mid = 0.2
-c_lock = 4.0
-i_lock = 0.4
-[w11]
-c_ini = 0.8
-s_ini = 0.05
-c_mid = 2.0
-delta_s_mid = 0.1
-c_lock = 10.0
-i_lock = 0.5
-[coupling]
-k_min = 0.3
-s11 = 6.0
-e11 = 2.5
-"#;
-
-    const SVK: &str = r#"
-law = "orthotropic-svk"
-[svk]
-e1 = 50.0
-e2 = 5.0
-nu12 = 0.3
-g12 = 1.0
-"#;
+    use crate::material::diagnostics::{BALANCED_TEST_SET as BALANCED, SVK_TEST_SET as SVK};
 
     const THICKNESS: f64 = 0.3;
     const TOLERANCE: f64 = 1e-12;

@@ -225,3 +225,55 @@ pub fn c_from_invariants(i4: f64, i6: f64, i8: f64, angle: f64) -> Sym2 {
     let frame = FibreFrame::from_angle(angle);
     i4 * frame.n4 + 2.0 * i6 * frame.n6 + i8 * frame.n8
 }
+
+/// A UD-NCF parameter set for tests: every term with a transition and a
+/// lock, moduli of order one and a non-integer coupling exponent, so that no
+/// term hides under the 1000 MPa roving modulus and k11″ is exercised away
+/// from `e11 = 2`. Parse with `MaterialSpec::from_toml_str`.
+pub const BALANCED_TEST_SET: &str = r#"
+law = "ud-ncf"
+name = "balanced-test"
+[w4]
+c_ini = 2.0
+s_ini = 0.02
+c_mid = 0.5
+delta_s_mid = 0.01
+c_lock = 30.0
+i_lock = 0.03
+[w6]
+c_ini = 1.0
+s_ini = 0.1
+c_mid = 0.2
+delta_s_mid = 0.05
+c_lock = 5.0
+i_lock = 0.6
+[w8]
+c_ini = 1.5
+s_ini = 0.1
+c_mid = 3.0
+delta_s_mid = 0.2
+c_lock = 4.0
+i_lock = 0.4
+[w11]
+c_ini = 0.8
+s_ini = 0.05
+c_mid = 2.0
+delta_s_mid = 0.1
+c_lock = 10.0
+i_lock = 0.5
+[coupling]
+k_min = 0.3
+s11 = 6.0
+e11 = 2.5
+"#;
+
+/// An orthotropic SVK parameter set for tests (`E1 = 50`, `E2 = 5`,
+/// `ν12 = 0.3`, `G12 = 1` MPa).
+pub const SVK_TEST_SET: &str = r#"
+law = "orthotropic-svk"
+[svk]
+e1 = 50.0
+e2 = 5.0
+nu12 = 0.3
+g12 = 1.0
+"#;

@@ -77,12 +77,18 @@ impl Invariants {
         let i4 = contract(&frame.n4, c);
         let i6 = contract(&frame.n6, c);
         let i8 = contract(&frame.n8, c);
+        // det C from the components (frame-independent round-off); it equals
+        // I4 I8 − I6² because {a0, b0} is orthonormal.
+        Self::checked(i4, i6, i8, c[0] * c[1] - c[2] * c[2])
+    }
+
+    /// The invariants with `I11 = √(det C / I4)`, or the error for
+    /// collapsed rovings (`I4 ≤ 0`) or a non-positive `det C`.
+    #[inline(always)]
+    fn checked(i4: f64, i6: f64, i8: f64, det: f64) -> Result<Self, MaterialError> {
         if i4 <= 0.0 {
             return Err(MaterialError::CollapsedRovings { i4 });
         }
-        // det C from the components (frame-independent round-off); it equals
-        // I4 I8 − I6² because {a0, b0} is orthonormal.
-        let det = c[0] * c[1] - c[2] * c[2];
         if det <= 0.0 {
             return Err(MaterialError::NonPositiveDeterminant { det });
         }
@@ -106,19 +112,7 @@ impl Invariants {
             return Err(MaterialError::NonFinite);
         }
         let (i4, i8, i6) = (c[0], c[1], c[2]);
-        if i4 <= 0.0 {
-            return Err(MaterialError::CollapsedRovings { i4 });
-        }
-        let det = i4 * i8 - i6 * i6;
-        if det <= 0.0 {
-            return Err(MaterialError::NonPositiveDeterminant { det });
-        }
-        Ok(Self {
-            i4,
-            i6,
-            i8,
-            i11: (det / i4).sqrt(),
-        })
+        Self::checked(i4, i6, i8, i4 * i8 - i6 * i6)
     }
 
     /// `det C = I4 I11²` (equal to `I4 I8 − I6²`).

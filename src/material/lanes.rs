@@ -6,7 +6,8 @@
 //! on its neighbours. No operation fuses a multiply and an add, so every
 //! lane computes bit for bit what the `f64` path computes.
 //!
-//! Declared from `generalized.rs`, whose exponential is its main user.
+//! Used by the law (`generalized.rs`, `coupling.rs`, `invariants.rs`,
+//! `udncf.rs`) and by the batched triangle kernel (`src/element/fibre_triangle.rs`).
 //!
 //! Everything here is `#[inline(always)]`: the SIMD types only reach their
 //! instructions when inlined into a function compiled for them (the element

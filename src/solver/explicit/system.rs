@@ -289,6 +289,24 @@ impl<'a> ExplicitSystem<'a> {
         })
     }
 
+    /// `Ok` when a pass found no failing element (`first == usize::MAX`),
+    /// else the failure of element `first`, recomputed serially for its
+    /// message. The one-triangle kernel repeats the batched arithmetic, so it
+    /// fails too; the fallback kind only guards against a mismatch.
+    fn failure_at(&self, first: usize, u: &[f64]) -> Result<(), ElementFailure> {
+        match first {
+            usize::MAX => Ok(()),
+            element => Err(ElementFailure {
+                element,
+                kind: self
+                    .element_failure(element, u)
+                    .unwrap_or(ElementFailureKind::Material(
+                        MaterialError::NonFiniteResponse,
+                    )),
+            }),
+        }
+    }
+
     /// The failure of element `e` at `u`, if any (serial, for messages).
     fn element_failure(&self, e: usize, u: &[f64]) -> Option<ElementFailureKind> {
         match self.elements[e]
@@ -326,19 +344,7 @@ impl<'a> ExplicitSystem<'a> {
                     first_failure.fetch_min(e, Ordering::Relaxed);
                 }
             });
-        match first_failure.into_inner() {
-            usize::MAX => Ok(()),
-            element => Err(ElementFailure {
-                element,
-                // The one-triangle kernel repeats the lanes' arithmetic, so it
-                // fails too; the fallback only guards against a mismatch.
-                kind: self
-                    .element_failure(element, u)
-                    .unwrap_or(ElementFailureKind::Material(
-                        MaterialError::NonFiniteResponse,
-                    )),
-            }),
-        }
+        self.failure_at(first_failure.into_inner(), u)
     }
 
     /// The forces of the triangles `first..first + out.len()` (the
@@ -654,17 +660,7 @@ impl<'a> ExplicitSystem<'a> {
                     }
                 }
             });
-        match first_failure.into_inner() {
-            usize::MAX => Ok(()),
-            element => Err(ElementFailure {
-                element,
-                kind: self
-                    .element_failure(element, u)
-                    .unwrap_or(ElementFailureKind::Material(
-                        crate::material::MaterialError::NonFiniteResponse,
-                    )),
-            }),
-        }
+        self.failure_at(first_failure.into_inner(), u)
     }
 
     /// Number of node blocks.
