@@ -124,6 +124,30 @@ impl TomlChecker<'_> {
         }
     }
 
+    /// An integer key in `range`, as a count, or an error naming the range
+    /// (`a count in 1..=100000`).
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`].
+    pub fn count(
+        &self,
+        v: &Spanned<i64>,
+        key: &str,
+        range: std::ops::RangeInclusive<i64>,
+    ) -> Result<usize, ConfigError> {
+        let n = *v.get_ref();
+        if range.contains(&n) {
+            Ok(n as usize)
+        } else {
+            Err(self.invalid(
+                self.line_of(v),
+                key,
+                n.to_string(),
+                &format!("a count in {}..={}", range.start(), range.end()),
+            ))
+        }
+    }
+
     /// The value of a key that names one of `options`, or an error listing
     /// them (`"a", "b" or "c"`).
     ///

@@ -62,7 +62,7 @@ pub enum SolverKind {
 }
 
 /// The `[explicit]` table as written.
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct ExplicitRaw {
     clamp_speed: Option<Spanned<f64>>,
@@ -113,19 +113,7 @@ impl ExplicitSettings {
         check: &TomlChecker,
         displacement: f64,
     ) -> Result<Self, ConfigError> {
-        let empty = ExplicitRaw {
-            clamp_speed: None,
-            duration: None,
-            amplitude: None,
-            safety_factor: None,
-            time_step: None,
-            time_step_update_interval: None,
-            mass_scaling_time_step: None,
-            damping: None,
-            kinetic_energy_warning: None,
-            history_interval: None,
-            threads: None,
-        };
+        let empty = ExplicitRaw::default();
         let raw = raw.unwrap_or(&empty);
         let positive =
             |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
@@ -177,7 +165,9 @@ impl ExplicitSettings {
                 },
                 update_interval: match &raw.time_step_update_interval {
                     None => 100,
-                    Some(n) => count(check, n, "explicit.time_step_update_interval", 1)?,
+                    Some(n) => {
+                        check.count(n, "explicit.time_step_update_interval", 1..=1_000_000)?
+                    }
                 },
             },
         };
@@ -205,7 +195,7 @@ impl ExplicitSettings {
         };
         let threads = match &raw.threads {
             None => 0,
-            Some(n) => count(check, n, "explicit.threads", 0)?,
+            Some(n) => check.count(n, "explicit.threads", 0..=1_000_000)?,
         };
         Ok(Self {
             duration: displacement / clamp_speed,
@@ -233,19 +223,5 @@ impl ExplicitSettings {
             check_inversion: true,
             threads: self.threads,
         }
-    }
-}
-
-fn count(check: &TomlChecker, v: &Spanned<i64>, key: &str, min: i64) -> Result<usize, ConfigError> {
-    let n = *v.get_ref();
-    if (min..=1_000_000).contains(&n) {
-        Ok(n as usize)
-    } else {
-        Err(check.invalid(
-            check.line_of(v),
-            key,
-            n.to_string(),
-            &format!("a count in {min}..=1000000"),
-        ))
     }
 }

@@ -184,20 +184,6 @@ pub struct OatModel {
     pub edge_deviation_deg: Option<f64>,
 }
 
-fn int_count(check: &TomlChecker, v: &Spanned<i64>, key: &str) -> Result<usize, ConfigError> {
-    let n = *v.get_ref();
-    if (1..=100_000).contains(&n) {
-        Ok(n as usize)
-    } else {
-        Err(check.invalid(
-            check.line_of(v),
-            key,
-            n.to_string(),
-            "a count in 1..=100000",
-        ))
-    }
-}
-
 impl OatCase {
     /// Parses and validates a case; relative paths are resolved against
     /// `base_dir`.
@@ -251,8 +237,8 @@ impl OatCase {
             },
             (None, None, Some(nx), Some(ny)) => MeshSource::Generated {
                 resolution: GridResolution::Counts {
-                    nx: int_count(&check, nx, "mesh.nx")?,
-                    ny: int_count(&check, ny, "mesh.ny")?,
+                    nx: check.count(nx, "mesh.nx", 1..=100_000)?,
+                    ny: check.count(ny, "mesh.ny", 1..=100_000)?,
                 },
                 pattern,
             },

@@ -113,16 +113,15 @@ impl UdNcf {
         let mut w_11 = 0.0;
         let mut w_11_11 = 0.0;
         let mut w_8_11 = 0.0;
-        let term = |w: &GeneralizedTerm, x: f64| w.eval(x);
 
         // W4 = G4(|I4 − 1|): dW4/dI4 = sgn(I4 − 1) f4 (erratum 2).
         let d4 = inv.i4 - 1.0;
-        let t4 = term(&self.w4, d4.abs());
+        let t4 = self.w4.eval(d4.abs());
         gradient[0] = t4.stress.copysign(d4);
         hessian[0][0] = t4.modulus;
 
         // W6 = G6(|I6|).
-        let t6 = term(&self.w6, inv.i6.abs());
+        let t6 = self.w6.eval(inv.i6.abs());
         gradient[1] = t6.stress.copysign(inv.i6);
         hessian[1][1] = t6.modulus;
 
@@ -132,7 +131,7 @@ impl UdNcf {
         // initial stiffnesses, so the undeformed state has a regular tangent.
         let mut w11 = 0.0;
         if inv.i11 <= 1.0 + KINK_TOLERANCE {
-            let t11 = term(&self.w11, (1.0 - inv.i11).max(0.0));
+            let t11 = self.w11.eval((1.0 - inv.i11).max(0.0));
             w11 = t11.energy;
             w_11 -= t11.stress;
             w_11_11 += t11.modulus;

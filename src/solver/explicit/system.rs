@@ -588,21 +588,16 @@ impl<'a> ExplicitSystem<'a> {
     /// # Errors
     /// The lowest-index failing element.
     pub fn element_frequencies(&self, u: &[f64]) -> Result<Vec<f64>, ElementFailure> {
-        (0..self.elements.len())
+        let frequencies: Vec<f64> = (0..self.elements.len())
             .into_par_iter()
-            .map(|e| {
-                self.elements[e]
-                    .max_frequency_squared(
-                        &self.element_displacements(e, u),
-                        &self.model.material,
-                        self.element_density[e],
-                    )
-                    .map_err(|err| ElementFailure {
-                        element: e,
-                        kind: ElementFailureKind::Material(err),
-                    })
-            })
-            .collect()
+            .with_min_len(ELEMENT_MIN_LEN)
+            .map(|e| self.element_frequency(e, u).unwrap_or(f64::INFINITY))
+            .collect();
+        if frequencies.iter().all(|w2| w2.is_finite()) {
+            Ok(frequencies)
+        } else {
+            Err(self.frequency_failure(u))
+        }
     }
 
     /// `2 / max_e ω_e`: the estimated critical step at `u` [s] (a lower
@@ -611,34 +606,41 @@ impl<'a> ExplicitSystem<'a> {
     /// # Errors
     /// The lowest-index failing element.
     pub fn critical_time_step(&self, u: &[f64]) -> Result<f64, ElementFailure> {
-        let material = &self.model.material;
-        let frequency = |e: usize| {
-            self.elements[e].max_frequency_squared(
-                &self.element_displacements(e, u),
-                material,
-                self.element_density[e],
-            )
-        };
         // A failing element maps to +∞, which no state reaches otherwise.
         let max = (0..self.elements.len())
             .into_par_iter()
             .with_min_len(ELEMENT_MIN_LEN)
-            .map(|e| frequency(e).unwrap_or(f64::INFINITY))
+            .map(|e| self.element_frequency(e, u).unwrap_or(f64::INFINITY))
             .reduce(|| 0.0, f64::max);
-        if max.is_finite() {
-            return Ok(if max > 0.0 {
-                2.0 / max.sqrt()
-            } else {
-                f64::INFINITY
-            });
+        if !max.is_finite() {
+            return Err(self.frequency_failure(u));
         }
+        Ok(if max > 0.0 {
+            2.0 / max.sqrt()
+        } else {
+            f64::INFINITY
+        })
+    }
+
+    /// The bound of `ω²` of triangle `e` at `u` with its (scaled) density.
+    fn element_frequency(&self, e: usize, u: &[f64]) -> Result<f64, MaterialError> {
+        self.elements[e].max_frequency_squared(
+            &self.element_displacements(e, u),
+            &self.model.material,
+            self.element_density[e],
+        )
+    }
+
+    /// The lowest-index triangle whose frequency bound fails at `u`
+    /// (serial; called only after a parallel pass found one).
+    fn frequency_failure(&self, u: &[f64]) -> ElementFailure {
         let (element, err) = (0..self.elements.len())
-            .find_map(|e| frequency(e).err().map(|err| (e, err)))
+            .find_map(|e| self.element_frequency(e, u).err().map(|err| (e, err)))
             .expect("an element failed");
-        Err(ElementFailure {
+        ElementFailure {
             element,
             kind: ElementFailureKind::Material(err),
-        })
+        }
     }
 
     /// Strain energy of every element at `u` into `energies`.
