@@ -12,6 +12,7 @@ pub mod analytic;
 pub mod case;
 pub mod cli;
 pub mod config;
+pub mod contact;
 pub mod element;
 pub mod material;
 pub mod mesh;
