@@ -22,8 +22,9 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use ncform::material::MaterialSpec;
 use ncform::mesh::generate::{GridPattern, GridResolution, OatSpecimen, oat_specimen};
+use ncform::model::{MembraneModel, MembraneOptions, Model, State};
 use ncform::solver::explicit::{ExplicitSystem, Update};
-use ncform::solver::{Dirichlet, DofMap, MembraneModel};
+use ncform::solver::{Dirichlet, DofMap};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
@@ -82,11 +83,20 @@ fn setup() -> (MembraneModel, DofMap, Vec<f64>) {
 }
 
 fn element_cycles(criterion: &mut Criterion) {
-    let (model, dofs, u0) = setup();
-    let system = ExplicitSystem::new(&model, &dofs, DENSITY, None, true, &u0).expect("system");
-    let critical = system.critical_time_step(&u0).expect("stable step");
+    let (membrane, dofs, u0) = setup();
+    let triangles = membrane.triangles.len();
+    let mut model = Model::membrane(
+        membrane,
+        MembraneOptions {
+            check_inversion: true,
+            density: Some(DENSITY),
+        },
+    );
+    let system = ExplicitSystem::new(&mut model, &dofs, None, &State::at(&u0)).expect("system");
+    let critical = system
+        .critical_time_step(&model, &State::at(&u0))
+        .expect("stable step");
     let time_step = 0.9 * critical;
-    let triangles = model.triangles.len();
     let mut group = criterion.benchmark_group("explicit_element_cycles");
     group.throughput(Throughput::Elements(triangles as u64));
     for threads in [1, 2] {
@@ -96,9 +106,13 @@ fn element_cycles(criterion: &mut Criterion) {
             .expect("pool");
         let mut u = u0.clone();
         let mut v = vec![0.0; u.len()];
-        let mut forces = vec![[0.0; 9]; triangles];
-        let mut partial = vec![0.0; system.node_blocks()];
-        pool.install(|| system.element_forces(&u, &mut forces).expect("forces"));
+        let mut forces = vec![0.0; system.force_len()];
+        let mut partial = vec![0.0; system.partials()];
+        pool.install(|| {
+            system
+                .element_forces(&mut model, &State::at(&u), &mut forces)
+                .expect("forces")
+        });
         group.bench_function(format!("{threads}_threads"), |b| {
             // The whole batch runs inside the pool, as the solver's loop does.
             b.iter_custom(|iterations| {
@@ -118,7 +132,7 @@ fn element_cycles(criterion: &mut Criterion) {
                             },
                         );
                         system
-                            .element_forces(black_box(&u), &mut forces)
+                            .element_forces(&mut model, &State::at(black_box(&u)), &mut forces)
                             .expect("forces");
                     }
                     start.elapsed()

@@ -2,9 +2,10 @@
 //! non-crimp fabrics (UD-NCF) with the hyperelastic membrane law of
 //! Schäfer, Dörr, Zheng, Naouar and Kärger (Composites Part A, 2024).
 //!
-//! Data flows mesh → material → element → assembly → solver → post.
-//! This release provides the material layer ([`material`]) and the writers
-//! for its curves ([`post`]).
+//! Data flows mesh → material → element → model → solver → post: a mesh
+//! and a law make elements; plies, tools and loads make a [`model::Model`]
+//! of force terms; the solvers ([`solver`]) drive any model; [`post`] reads
+//! the results. [`case`] builds models from case files.
 
 #![warn(missing_docs)]
 
@@ -16,5 +17,6 @@ pub mod contact;
 pub mod element;
 pub mod material;
 pub mod mesh;
+pub mod model;
 pub mod post;
 pub mod solver;

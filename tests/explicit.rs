@@ -32,12 +32,13 @@ use rand::{RngExt, SeedableRng};
 
 use ncform::element::FibreTriangle;
 use ncform::material::{Material, MaterialSpec, OrthotropicSvk};
+use ncform::model::{MembraneModel, MembraneOptions, Model, State};
 use ncform::solver::explicit::{
     Amplitude, ExplicitError, ExplicitSystem, SetupError, TimeStepControl,
 };
 use ncform::solver::{
     Dirichlet, DofMap, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState,
-    MembraneModel, RunStatus, solve_explicit,
+    RunStatus, Snapshot, solve_explicit,
 };
 
 /// Dry-fabric density [t/mm³] (1 g/cm³ = 1e-9 t/mm³).
@@ -77,6 +78,40 @@ fn grid(nx: usize, ny: usize, dx: f64, dy: f64, material: Material) -> MembraneM
     MembraneModel::new(nodes, triangles, &fibres, material, THICKNESS).expect("model")
 }
 
+/// The solvers' model of a membrane: density [`RHO`], triangles checked
+/// for turning over in their plane.
+fn solver(model: &MembraneModel) -> Model {
+    Model::membrane(
+        model.clone(),
+        MembraneOptions {
+            check_inversion: true,
+            density: Some(RHO),
+        },
+    )
+}
+
+/// The explicit system of a membrane with the model it drives, for the
+/// stable-step estimate and the lumped masses.
+struct System {
+    model: Model,
+    system: ExplicitSystem,
+}
+
+impl System {
+    fn new(model: &MembraneModel, dofs: &DofMap, u: &[f64]) -> Self {
+        let mut model = solver(model);
+        let system = ExplicitSystem::new(&mut model, dofs, None, &State::at(u)).unwrap();
+        Self { model, system }
+    }
+
+    /// The estimated critical step at `u` [s].
+    fn critical_time_step(&self, u: &[f64]) -> f64 {
+        self.system
+            .critical_time_step(&self.model, &State::at(u))
+            .unwrap()
+    }
+}
+
 /// Fixes x and y of the nodes at `x = 0` and z everywhere (in-plane motion).
 fn clamp_left_edge(model: &MembraneModel) -> DofMap {
     let mut conditions = Vec::new();
@@ -105,7 +140,7 @@ fn every_step(dt: f64, steps: usize) -> (Vec<f64>, TimeStepControl) {
 
 /// Undamped, unloaded run parameters on one thread (tests run in parallel).
 fn parameters(duration: f64, time_step: TimeStepControl) -> ExplicitParameters {
-    let mut params = ExplicitParameters::new(RHO, duration);
+    let mut params = ExplicitParameters::new(duration);
     params.time_step = time_step;
     params.threads = 1;
     params
@@ -124,13 +159,13 @@ fn run(
 ) -> (ExplicitResult, Vec<Vec<f64>>) {
     let mut watched = Vec::new();
     let result = solve_explicit(
-        model,
+        &mut solver(model),
         dofs,
         params,
         final_load,
         times,
         state,
-        |_, u: &[f64]| watched.push(watch.iter().map(|&d| u[d]).collect::<Vec<f64>>()),
+        |_, s: &Snapshot| watched.push(watch.iter().map(|&d| s.u[d]).collect::<Vec<f64>>()),
     )
     .expect("the run starts");
     (result, watched)
@@ -438,8 +473,8 @@ fn strip_vibrates_as_a_fixed_free_bar() {
     }
     // The step must be stable: the estimate bounds the critical step from
     // below.
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &state.u).unwrap();
-    assert!(dt < system.critical_time_step(&state.u).unwrap());
+    let system = System::new(&model, &dofs, &state.u);
+    assert!(dt < system.critical_time_step(&state.u));
 
     let periods = 10.0;
     let steps = (periods * 2.0 * std::f64::consts::PI / (omega_full * dt)).ceil() as usize;
@@ -539,12 +574,12 @@ fn stable_step_estimate_bounds_the_exact_critical_step() {
     let modes = Modes::new(&model, &dofs);
     let exact = 2.0 / modes.omega_max();
     let u = vec![0.0; dofs.total];
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &u).unwrap();
+    let system = System::new(&model, &dofs, &u);
     // The solver's lumped masses are the ones used here (round-off).
-    for (mine, theirs) in lumped_masses(&model).iter().zip(&system.node_mass) {
+    for (mine, theirs) in lumped_masses(&model).iter().zip(&system.system.masses.node) {
         assert!((mine - theirs).abs() <= 1e-14 * mine);
     }
-    let estimate = system.critical_time_step(&u).unwrap();
+    let estimate = system.critical_time_step(&u);
     eprintln!(
         "stable step: exact {exact:.4e} s, estimate {estimate:.4e} s, ratio {:.3}",
         estimate / exact
@@ -662,8 +697,8 @@ fn undamped_vibration_conserves_energy_svk() {
     let dofs = clamp_left_edge(&model);
     let modes = Modes::new(&model, &dofs);
     let zero = vec![0.0; dofs.total];
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &zero).unwrap();
-    let dt = 0.9 * system.critical_time_step(&zero).unwrap();
+    let system = System::new(&model, &dofs, &zero);
+    let dt = 0.9 * system.critical_time_step(&zero);
     let omega_1 = modes.omega2[0].sqrt();
     // Velocity amplitude: 1e-6 mm of displacement in the slowest mode, over
     // a 5 mm cell: |∇u| ~ 1e-6 / 5 · (a few).
@@ -723,8 +758,8 @@ fn undamped_vibration_conserves_energy_udncf() {
     let model = grid(4, 4, 5.0, 5.0, material);
     let dofs = clamp_left_edge(&model);
     let zero = vec![0.0; dofs.total];
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &zero).unwrap();
-    let estimate = system.critical_time_step(&zero).unwrap();
+    let system = System::new(&model, &dofs, &zero);
+    let estimate = system.critical_time_step(&zero);
     let dt = 0.1 * estimate;
     // v/ω_max ≈ v Δt_est/2 = 1e-4 × 5 mm.
     let v0 = random_free(&dofs, 1e-4 * 5.0 * 2.0 / estimate, 5);
@@ -733,9 +768,17 @@ fn undamped_vibration_conserves_energy_udncf() {
     let params = parameters(steps as f64 * dt, control);
     let mut state = ExplicitState { u: zero, v: v0 };
     let mut smallest = estimate;
-    let result = solve_explicit(&model, &dofs, &params, 0.0, &times, &mut state, |_, u| {
-        smallest = smallest.min(system.critical_time_step(u).unwrap());
-    })
+    let result = solve_explicit(
+        &mut solver(&model),
+        &dofs,
+        &params,
+        0.0,
+        &times,
+        &mut state,
+        |_, s| {
+            smallest = smallest.min(system.critical_time_step(s.u));
+        },
+    )
     .unwrap();
     assert_eq!(result.status, RunStatus::Complete);
     let q = (dt / smallest).powi(2);
@@ -788,8 +831,8 @@ fn damping_dissipates_the_energy_lost() {
     let dofs = clamp_left_edge(&model);
     let modes = Modes::new(&model, &dofs);
     let zero = vec![0.0; dofs.total];
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &zero).unwrap();
-    let dt = 0.9 * system.critical_time_step(&zero).unwrap();
+    let system = System::new(&model, &dofs, &zero);
+    let dt = 0.9 * system.critical_time_step(&zero);
     let omega_1 = modes.omega2[0].sqrt();
     let alpha = 0.1 * omega_1;
     // The first mode, `M^{−½} y_1`, scaled to 2e-5 mm at most: then the
@@ -904,23 +947,30 @@ fn results_do_not_depend_on_the_thread_count() {
     }
     let dofs = DofMap::new(model.nodes.len(), &conditions);
     let zero = vec![0.0; dofs.total];
-    let system = ExplicitSystem::new(&model, &dofs, RHO, None, true, &zero).unwrap();
-    let estimate = system.critical_time_step(&zero).unwrap();
+    let system = System::new(&model, &dofs, &zero);
+    let estimate = system.critical_time_step(&zero);
     let v0 = random_free(&dofs, 1e-4 * 2.0 * 2.0 / estimate, 6);
     let duration = 250.0 * estimate;
     let times: Vec<f64> = [0.13, 0.3, 0.5, 0.77, 0.9].map(|f| f * duration).to_vec();
     let runs: Vec<(ExplicitResult, ExplicitState)> = [1, 2]
         .map(|threads| {
-            let mut params = ExplicitParameters::new(RHO, duration);
+            let mut params = ExplicitParameters::new(duration);
             params.threads = threads;
             params.damping = 1e3;
             let mut state = ExplicitState {
                 u: zero.clone(),
                 v: v0.clone(),
             };
-            let result =
-                solve_explicit(&model, &dofs, &params, 0.05, &times, &mut state, |_, _| {})
-                    .unwrap();
+            let result = solve_explicit(
+                &mut solver(&model),
+                &dofs,
+                &params,
+                0.05,
+                &times,
+                &mut state,
+                |_, _| {},
+            )
+            .unwrap();
             assert_eq!(result.status, RunStatus::Complete);
             assert_eq!(result.threads, threads);
             (result, state)
@@ -952,13 +1002,18 @@ fn results_do_not_depend_on_the_thread_count() {
 fn bad_settings_and_models_give_clear_errors() {
     let (model, dofs) = tiny_mesh();
     let run_with = |params: &ExplicitParameters, state: &mut ExplicitState| {
-        solve_explicit(&model, &dofs, params, 0.0, &[], state, |_, _| {})
+        solve_explicit(
+            &mut solver(&model),
+            &dofs,
+            params,
+            0.0,
+            &[],
+            state,
+            |_, _| {},
+        )
     };
     let base = parameters(1e-5, TimeStepControl::Fixed { time_step: 1e-7 });
     let mut cases: Vec<(ExplicitParameters, &str, &str)> = Vec::new();
-    let mut p = base;
-    p.density = -1e-9;
-    cases.push((p, "density", "-0.000000001"));
     let mut p = base;
     p.duration = 0.0;
     cases.push((p, "duration", "0"));
@@ -993,6 +1048,30 @@ fn bad_settings_and_models_give_clear_errors() {
         }
     }
 
+    // A non-positive density: named with its value.
+    let negative = Model::membrane(
+        model.clone(),
+        MembraneOptions {
+            check_inversion: true,
+            density: Some(-1e-9),
+        },
+    );
+    let mut state = ExplicitState::at_rest(dofs.total);
+    let err = solve_explicit(
+        &mut { negative },
+        &dofs,
+        &base,
+        0.0,
+        &[],
+        &mut state,
+        |_, _| {},
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, ExplicitError::Term(_)) && err.to_string().contains("density = -0.000000001"),
+        "{err}"
+    );
+
     // A state of the wrong length, for u and for v.
     let params = base;
     let mut state = ExplicitState::at_rest(dofs.total - 1);
@@ -1025,7 +1104,7 @@ fn bad_settings_and_models_give_clear_errors() {
     let bigger_dofs = DofMap::new(bigger.nodes.len(), &conditions);
     let mut state = ExplicitState::at_rest(bigger_dofs.total);
     let err = solve_explicit(
-        &bigger,
+        &mut solver(&bigger),
         &bigger_dofs,
         &params,
         0.0,
@@ -1084,7 +1163,7 @@ fn driven_dofs_follow_the_smooth_step() {
     let final_load = 0.05;
     // τ_k = k/40 exactly, so the last output is T itself.
     let times: Vec<f64> = (1..=40).map(|k| k as f64 / 40.0 * duration).collect();
-    let mut params = ExplicitParameters::new(RHO, duration);
+    let mut params = ExplicitParameters::new(duration);
     params.threads = 1;
     assert_eq!(params.amplitude, Amplitude::SmoothStep);
     let mut state = ExplicitState::at_rest(dofs.total);

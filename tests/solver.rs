@@ -13,8 +13,9 @@ use ncform::material::{
     FibreFrame, GeneralizedTerm, Material, MaterialSpec, MembraneMaterial, Sym2,
 };
 use ncform::mesh::generate::{GridPattern, GridResolution, OatSpecimen, oat_specimen};
+use ncform::model::{MembraneModel, MembraneOptions, Model, State};
 use ncform::solver::newton::solve_quasi_static;
-use ncform::solver::{Assembler, Dirichlet, DofMap, MembraneModel, NewtonParameters, RunStatus};
+use ncform::solver::{Assembler, Dirichlet, DofMap, NewtonParameters, RunStatus};
 
 const SVK: &str = "law = \"orthotropic-svk\"\n[svk]\ne1 = 50.0\ne2 = 5.0\nnu12 = 0.3\ng12 = 1.0\n";
 
@@ -217,6 +218,18 @@ fn boundary_nodes(mesh: &ncform::mesh::Mesh) -> Vec<usize> {
 /// moved by up to `jitter` mm) with `u = (F0 − I) X` prescribed on the
 /// boundary and every `z` fixed; the load parameter scales the boundary
 /// displacement from 0 to 1.
+/// The solver's model of a planar membrane (triangles checked for turning
+/// over), quasi-static only.
+fn planar(model: &MembraneModel) -> Model {
+    Model::membrane(
+        model.clone(),
+        MembraneOptions {
+            check_inversion: true,
+            density: None,
+        },
+    )
+}
+
 fn patch_problem(
     law: Material,
     f0: Matrix2<f64>,
@@ -273,8 +286,16 @@ fn patch_test_reproduces_the_homogeneous_state() {
             ..Default::default()
         };
         let mut u = vec![0.0; 3 * mesh.nodes.len()];
-        let result =
-            solve_quasi_static(&model, dofs, true, &params, 1.0, &[], &mut u, |_, _| {}).unwrap();
+        let result = solve_quasi_static(
+            &mut planar(&model),
+            dofs,
+            &params,
+            1.0,
+            &[],
+            &mut u,
+            |_, _| {},
+        )
+        .unwrap();
         assert_eq!(result.status, RunStatus::Complete, "{name}");
         for n in 0..mesh.nodes.len() {
             let x = mesh.nodes[n];
@@ -349,9 +370,8 @@ fn assembled_tangent_matches_finite_differences_of_the_residual() {
     );
     let mut u = vec![0.0; dofs.total];
     let result = solve_quasi_static(
-        &model,
+        &mut planar(&model),
         dofs.clone(),
-        true,
         &NewtonParameters::default(),
         30.0,
         &[],
@@ -360,11 +380,17 @@ fn assembled_tangent_matches_finite_differences_of_the_residual() {
     )
     .unwrap();
     assert_eq!(result.status, RunStatus::Complete);
-    let mut assembler = Assembler::new(&model, dofs.clone(), true);
+    let mut solver_model = planar(&model);
+    let mut assembler = Assembler::new(&solver_model, dofs.clone());
     let mut internal = vec![0.0; dofs.total];
     let mut values = vec![0.0; assembler.nnz()];
     assembler
-        .force_tangent(&model, &u, &mut internal, &mut values)
+        .force_tangent(
+            &mut solver_model,
+            &State::at(&u),
+            &mut internal,
+            &mut values,
+        )
         .unwrap();
     let mut rng = StdRng::seed_from_u64(5);
     let n = dofs.n_free();
@@ -384,8 +410,9 @@ fn assembled_tangent_matches_finite_differences_of_the_residual() {
                 w[d] += s * v[k];
             }
             let mut f = vec![0.0; dofs.total];
-            Assembler::new(&model, dofs.clone(), true)
-                .force(&model, &w, &mut f)
+            let mut solver_model = planar(&model);
+            Assembler::new(&solver_model, dofs.clone())
+                .force(&mut solver_model, &State::at(&w), &mut f)
                 .unwrap();
             DVector::from_iterator(n, dofs.free.iter().map(|&d| f[d]))
         };
@@ -409,8 +436,16 @@ fn observed_orders(law: Material, name: &str) -> Vec<f64> {
         residual_tolerance: 1e-9,
         ..Default::default()
     };
-    let result =
-        solve_quasi_static(&model, dofs, true, &params, 40.0, &[], &mut u, |_, _| {}).unwrap();
+    let result = solve_quasi_static(
+        &mut planar(&model),
+        dofs,
+        &params,
+        40.0,
+        &[],
+        &mut u,
+        |_, _| {},
+    )
+    .unwrap();
     assert_eq!(result.status, RunStatus::Complete);
     let floor = 30.0
         * result
@@ -501,8 +536,16 @@ fn newton_converges_quadratically() {
         ..Default::default()
     };
     let mut u = vec![0.0; 3 * mesh.nodes.len()];
-    let result =
-        solve_quasi_static(&model, dofs, true, &params, 1.0, &[], &mut u, |_, _| {}).unwrap();
+    let result = solve_quasi_static(
+        &mut planar(&model),
+        dofs,
+        &params,
+        1.0,
+        &[],
+        &mut u,
+        |_, _| {},
+    )
+    .unwrap();
     assert_eq!(result.status, RunStatus::Complete);
     // The last step ends at the homogeneous state (a first attempt in one
     // step may be cut back).
@@ -548,9 +591,8 @@ fn stiff_fibres_approach_the_pin_jointed_net() {
         let mut u = vec![0.0; dofs.total];
         let mut forces = Vec::new();
         let result = solve_quasi_static(
-            &model,
+            &mut planar(&model),
             dofs,
-            true,
             &NewtonParameters::default(),
             final_load,
             &stops,
@@ -595,9 +637,8 @@ fn plus_and_minus_45_give_the_same_force_curve() {
         let mut u = vec![0.0; dofs.total];
         let mut forces = Vec::new();
         solve_quasi_static(
-            &model,
+            &mut planar(&model),
             dofs,
-            true,
             &NewtonParameters::default(),
             30.0,
             &stops,

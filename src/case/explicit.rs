@@ -210,17 +210,15 @@ impl ExplicitSettings {
         })
     }
 
-    /// The solver parameters for density `density` [t/mm³].
-    pub fn parameters(&self, density: f64) -> ExplicitParameters {
+    /// The solver parameters.
+    pub fn parameters(&self) -> ExplicitParameters {
         ExplicitParameters {
-            density,
             duration: self.duration,
             amplitude: self.amplitude,
             time_step: self.time_step,
             mass_scaling_target: self.mass_scaling_time_step,
             damping: self.damping,
             kinetic_energy_warning: self.kinetic_energy_warning,
-            check_inversion: true,
             threads: self.threads,
         }
     }

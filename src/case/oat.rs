@@ -18,7 +18,8 @@ use crate::config::{ConfigError, TomlChecker, parse_toml};
 use crate::material::MaterialSpec;
 use crate::mesh::Mesh;
 use crate::mesh::generate::{GridPattern, GridResolution, OatSpecimen, oat_specimen};
-use crate::solver::{Dirichlet, DofMap, MembraneModel, NewtonParameters};
+use crate::model::{MembraneModel, MembraneOptions, Model};
+use crate::solver::{Dirichlet, DofMap, NewtonParameters};
 
 /// Default side of the square main-deformation-zone window [mm].
 pub const DEFAULT_MDZ_SIZE: f64 = 20.0;
@@ -548,6 +549,19 @@ impl OatCase {
     /// The dof map of a built model.
     pub fn dofs(model: &OatModel) -> DofMap {
         DofMap::new(model.mesh.nodes.len(), &model.dirichlet)
+    }
+
+    /// The model the solvers drive: the specimen's membrane, checked for
+    /// triangles turning over in the plane (the test is in-plane), with the
+    /// case's density.
+    pub fn solver_model(&self, built: &OatModel) -> Model {
+        Model::membrane(
+            built.model.clone(),
+            MembraneOptions {
+                check_inversion: true,
+                density: self.density,
+            },
+        )
     }
 
     /// Does the line through `p` along `d` (both ways) end on a clamp edge

@@ -21,6 +21,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
+use crate::model::Model;
 use crate::post::contour::{ContourMap, write_contour_png};
 use crate::post::csv::write_csv;
 use crate::post::fields::{ElementFields, area_mean, element_fields};
@@ -428,6 +429,7 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
     let built = case.build()?;
     std::fs::create_dir_all(out.join("vtu")).map_err(|e| io_err(out, e))?;
     let dofs = OatCase::dofs(&built);
+    let mut model = case.solver_model(&built);
     let mut stops: Vec<f64> = case.output_displacements.clone();
     stops.extend(
         REPORTED_DISPLACEMENTS
@@ -437,10 +439,10 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
     let mut sink = OutputSink::new(case, &built, out);
     let report = match case.solver_kind {
         SolverKind::QuasiStatic => {
-            run_quasi_static(case, &built, dofs, &stops, &mut sink, &mut progress)?
+            run_quasi_static(case, &mut model, dofs, &stops, &mut sink, &mut progress)?
         }
         SolverKind::Explicit => {
-            run_explicit(case, &built, &dofs, &stops, &mut sink, &mut progress)?
+            run_explicit(case, &mut model, &dofs, &stops, &mut sink, &mut progress)?
         }
     };
     progress.finish();
@@ -484,7 +486,7 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
 
 fn run_quasi_static(
     case: &OatCase,
-    built: &OatModel,
+    model: &mut Model,
     dofs: DofMap,
     stops: &[f64],
     sink: &mut OutputSink,
@@ -492,17 +494,16 @@ fn run_quasi_static(
 ) -> Result<SolveReport, String> {
     let mut u = vec![0.0; dofs.total];
     let result: QuasiStaticResult = solve_quasi_static(
-        &built.model,
+        model,
         dofs,
-        true,
         &case.solver,
         case.displacement,
         stops,
         &mut u,
-        |record, u| {
+        |record, snapshot| {
             let detail = format!("step {}, {} iterations", record.step, record.iterations);
             progress.update(record.load, record.reaction, &detail, case.displacement);
-            sink.record(record.load, record.reaction, u, |row| {
+            sink.record(record.load, record.reaction, snapshot.u, |row| {
                 row.iterations = Some(record.iterations);
             });
         },
@@ -520,7 +521,7 @@ fn run_quasi_static(
 
 fn run_explicit(
     case: &OatCase,
-    built: &OatModel,
+    model: &mut Model,
     dofs: &DofMap,
     stops: &[f64],
     sink: &mut OutputSink,
@@ -532,7 +533,7 @@ fn run_explicit(
             case.source
         )
     })?;
-    let params = case.explicit.parameters(density);
+    let params = case.explicit.parameters();
     let total = case.displacement;
     // History rows every `history_interval`, plus the VTU and reported
     // displacements, as times of the clamp amplitude.
@@ -546,13 +547,13 @@ fn run_explicit(
         .collect();
     let mut state = ExplicitState::at_rest(dofs.total);
     let result = solve_explicit(
-        &built.model,
+        model,
         dofs,
         &params,
         total,
         &times,
         &mut state,
-        |record, u| {
+        |record, snapshot| {
             let detail = format!(
                 "t = {:.4} s, {} increments, KE/IE = {:.2e}",
                 record.time,
@@ -560,7 +561,7 @@ fn run_explicit(
                 record.energies.kinetic_ratio()
             );
             progress.update(record.load, record.reaction, &detail, total);
-            sink.record(record.load, record.reaction, u, |row| {
+            sink.record(record.load, record.reaction, snapshot.u, |row| {
                 row.time = Some(record.time);
                 row.increments = Some(record.increment);
             });

@@ -26,7 +26,7 @@ use nalgebra::{Matrix2, Matrix3, Vector2};
 
 use super::membrane::MembraneReference;
 use crate::material::lanes::Real;
-use crate::material::{FibreFrame, MaterialError, MembraneMaterial, Sym2};
+use crate::material::{FibreFrame, Material, MaterialError, MembraneMaterial, Sym2, UdNcf};
 
 /// One triangle in its fibre basis (reference data for the explicit solver).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -253,6 +253,22 @@ pub trait LaneStress<V: Real> {
     /// [`MembraneMaterial::fibre_stress`] returns `Ok`, with the same `S`);
     /// the stress of any other lane is meaningless.
     fn stress_lanes(&self, c: &[V; 3]) -> ([V; 3], V::Mask);
+}
+
+/// The UD-NCF law on lanes.
+impl<V: Real> LaneStress<V> for UdNcf {
+    #[inline(always)]
+    fn stress_lanes(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        self.fibre_stress_lanes(c)
+    }
+}
+
+/// Any law of [`Material`] on lanes: each law's own lane form.
+impl<V: Real> LaneStress<V> for Material {
+    #[inline(always)]
+    fn stress_lanes(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        self.fibre_stress_lanes(c)
+    }
 }
 
 /// `N` triangles lane by lane: the sixteen numbers of [`FibreTriangle`],

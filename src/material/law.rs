@@ -54,6 +54,13 @@ pub trait MembraneMaterial: Send + Sync {
         self.stress(c, &FibreFrame::aligned()).map(|s| s.stress)
     }
 
+    /// The transverse-tension coupling factor `k11(I11)` (Eq. 15 as
+    /// corrected in `docs/theory.md`) that scales the stitching energy;
+    /// 1 for a law without coupling. Reported as a result field.
+    fn coupling_factor(&self, _i11: f64) -> f64 {
+        1.0
+    }
+
     /// `W`, `S` and `ℂ = 4 ∂²W/∂C∂C`.
     ///
     /// # Errors

@@ -62,6 +62,20 @@ pub enum Material {
     OrthotropicSvk(OrthotropicSvk),
 }
 
+impl Material {
+    /// `S` in the fibre basis from `C = [I4, I8, I6]` on lanes (one point
+    /// or a SIMD batch), and the lanes the law accepts: each law's own lane
+    /// form, the same arithmetic as its one-point
+    /// [`MembraneMaterial::fibre_stress`].
+    #[inline(always)]
+    pub fn fibre_stress_lanes<V: lanes::Real>(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        match self {
+            Material::UdNcf(law) => law.fibre_stress_lanes(c),
+            Material::OrthotropicSvk(law) => law.fibre_stress_lanes(c),
+        }
+    }
+}
+
 impl MembraneMaterial for Material {
     #[inline]
     fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError> {
@@ -76,6 +90,13 @@ impl MembraneMaterial for Material {
         match self {
             Material::UdNcf(law) => law.fibre_stress(c),
             Material::OrthotropicSvk(law) => law.fibre_stress(c),
+        }
+    }
+
+    fn coupling_factor(&self, i11: f64) -> f64 {
+        match self {
+            Material::UdNcf(law) => law.coupling_factor(i11),
+            Material::OrthotropicSvk(law) => law.coupling_factor(i11),
         }
     }
 

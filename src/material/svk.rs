@@ -5,7 +5,8 @@
 
 use super::MaterialError;
 use super::frame::{FibreFrame, Sym2};
-use super::invariants::Invariants;
+use super::invariants::{InvariantLanes, Invariants};
+use super::lanes::Real;
 use super::law::{
     MembraneMaterial, StressState, Tangent, check_finite, stress_from_gradient,
     tangent_from_hessian,
@@ -51,6 +52,25 @@ impl OrthotropicSvk {
         Ok((energy, gradient))
     }
 
+    /// `S` in the fibre basis from `C = [I4, I8, I6]` on lanes, and the
+    /// admissible lanes (finite `C`, `I4 > 0`, `det C > 0`, finite `S`):
+    /// `S = 2 (g4 N4 + g6 N6 + g8 N8) = [2 g4, 2 g8, g6]` with the gradient
+    /// of [`OrthotropicSvk::evaluate`]. The one-point path
+    /// ([`MembraneMaterial::fibre_stress`]) is this on `f64`, so the batched
+    /// force pass repeats it bit for bit.
+    #[inline(always)]
+    pub(crate) fn fibre_stress_lanes<V: Real>(&self, c: &[V; 3]) -> ([V; 3], V::Mask) {
+        let (inv, admissible) = InvariantLanes::in_fibre_basis(c);
+        let (q11, q22, q12, q66) = self.plane_stress_stiffness();
+        let d4 = inv.i4 - 1.0;
+        let d8 = inv.i8 - 1.0;
+        let g4 = (d4 * q11 + d8 * q12) * 0.25;
+        let g8 = (d4 * q12 + d8 * q22) * 0.25;
+        let stress = [g4 * 2.0, g8 * 2.0, inv.i6 * q66];
+        let finite = stress[0].is_finite() & stress[1].is_finite() & stress[2].is_finite();
+        (stress, admissible & finite)
+    }
+
     /// The constant Hessian `H44 = Q11/4`, `H48 = Q12/4`, `H88 = Q22/4`,
     /// `H66 = G12`.
     fn hessian(&self) -> [[f64; 3]; 3] {
@@ -72,6 +92,17 @@ impl MembraneMaterial for OrthotropicSvk {
         };
         check_finite(&state)?;
         Ok(state)
+    }
+
+    /// [`OrthotropicSvk::fibre_stress_lanes`] on one point.
+    #[inline(always)]
+    fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
+        let ([s11, s22, s12], accepted) = self.fibre_stress_lanes(&[c[0], c[1], c[2]]);
+        if accepted {
+            return Ok(Sym2::new(s11, s22, s12));
+        }
+        Invariants::in_fibre_basis(c)?;
+        Err(MaterialError::NonFiniteResponse)
     }
 
     fn stress_tangent(

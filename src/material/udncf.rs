@@ -253,6 +253,11 @@ impl UdNcf {
 }
 
 impl MembraneMaterial for UdNcf {
+    /// `k11(I11)` of the coupling (Eq. 15, corrected).
+    fn coupling_factor(&self, i11: f64) -> f64 {
+        self.coupling.eval(i11).k
+    }
+
     #[inline]
     fn stress(&self, c: &Sym2, frame: &FibreFrame) -> Result<StressState, MaterialError> {
         let point = self.evaluate(c, frame, false)?;

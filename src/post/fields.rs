@@ -4,8 +4,8 @@
 //! second Piola–Kirchhoff stress in global axes. Reads results, changes
 //! nothing.
 
-use crate::material::{Invariants, Material, MaterialError, MembraneMaterial};
-use crate::solver::MembraneModel;
+use crate::material::{Invariants, MaterialError, MembraneMaterial};
+use crate::model::MembraneModel;
 
 /// Fields of one element.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -51,10 +51,7 @@ pub fn element_fields(
                 .material
                 .stress(&kin.c, &reference.frame)
                 .map_err(|err| (e, err))?;
-            let k11 = match &model.material {
-                Material::UdNcf(law) => law.coupling.eval(inv.i11).k,
-                Material::OrthotropicSvk(_) => 1.0,
-            };
+            let k11 = model.material.coupling_factor(inv.i11);
             // S_global = R S Rᵀ with R = [e1 e2] (3×2); keep xx, yy, xy.
             let s = state.stress;
             let (e1, e2) = (reference.e1, reference.e2);

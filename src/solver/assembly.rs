@@ -1,62 +1,59 @@
-//! Assembly of the internal force, the energy and the tangent over a
-//! membrane model. The sparsity pattern (free dofs only, CSC) and every
-//! element's slots in it are built once; each assembly runs the element loop
-//! in parallel with rayon into per-element buffers, then scatters serially
-//! (so the result does not depend on the thread count).
+//! Assembly of the residual, the energy and the tangent over a model's
+//! terms. The sparsity pattern (free dofs only, CSC) is the union of every
+//! term's stencils and is built once, with every stencil entry's slot in
+//! it; each assembly lets every term evaluate its stencils (in parallel,
+//! into the term's own buffers), then scatters serially in term and
+//! stencil order (so the result does not depend on the thread count).
 
 use faer::sparse::SymbolicSparseColMat;
-use rayon::prelude::*;
 
 use super::dofs::DofMap;
-use super::model::MembraneModel;
-use crate::element::membrane::{ElementMatrix, ElementVector};
-use crate::material::MaterialError;
+use crate::model::{Model, NO_SLOT, State, TermFailure};
 
-/// Marks an element-matrix entry that touches a constrained dof.
-const CONSTRAINED: usize = usize::MAX;
+/// Marks an entry that touches a constrained or unused dof.
+const NONE: usize = usize::MAX;
 
-/// Why an element could not be evaluated.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-pub enum ElementFailureKind {
-    /// The law rejected the state (collapsed element or rovings, …).
-    #[error("{0}")]
-    Material(MaterialError),
-    /// The triangle turned over in its plane (checked for planar models).
-    #[error("the triangle is inverted (signed area ratio {orientation:e})")]
-    Inverted {
-        /// `(g1 × g2) · N0`.
-        orientation: f64,
-    },
+/// One term's stencil layout and buffers.
+struct TermBuffers {
+    /// Dofs per stencil.
+    size: usize,
+    /// Per stencil entry: its global dof, or `NONE`.
+    dofs: Vec<usize>,
+    /// Per stencil matrix entry (column-major): its CSC slot, or `NONE`.
+    slots: Vec<usize>,
+    /// Residual contributions (`count × size`).
+    force: Vec<f64>,
+    /// Tangents (`count × size²`).
+    tangent: Vec<f64>,
 }
 
-/// The first element (lowest index) that failed, and why.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-#[error("element {element}: {kind}")]
-pub struct ElementFailure {
-    /// Element index.
-    pub element: usize,
-    /// The cause.
-    pub kind: ElementFailureKind,
-}
-
-/// Per-element output of the parallel loop.
-#[derive(Debug, Clone, Copy)]
-struct ElementOutput {
-    energy: f64,
-    force: ElementVector,
-    stiffness: ElementMatrix,
-    failure: Option<ElementFailureKind>,
-}
-
-impl Default for ElementOutput {
-    fn default() -> Self {
-        Self {
-            energy: 0.0,
-            force: ElementVector::zeros(),
-            stiffness: ElementMatrix::zeros(),
-            failure: None,
+/// The global dofs of every stencil of a term, `count × size`, with `NONE`
+/// for unused slots.
+fn stencil_dofs(model: &Model, t: usize) -> (usize, Vec<usize>) {
+    let term = &model.terms[t];
+    let layout = term.stencils();
+    let size = layout.size();
+    let mut nodes = vec![NO_SLOT; layout.nodes];
+    let mut extras = vec![NO_SLOT; layout.extras];
+    let mut dofs = Vec::with_capacity(layout.count * size);
+    for s in 0..layout.count {
+        nodes.fill(NO_SLOT);
+        extras.fill(NO_SLOT);
+        term.stencil(s, &mut nodes, &mut extras);
+        for &n in &nodes {
+            for k in 0..3 {
+                dofs.push(if n == NO_SLOT { NONE } else { 3 * n + k });
+            }
+        }
+        for &x in &extras {
+            dofs.push(if x == NO_SLOT {
+                NONE
+            } else {
+                model.extra_dof(x)
+            });
         }
     }
+    (size, dofs)
 }
 
 /// Assembler for one model and one set of Dirichlet conditions.
@@ -65,34 +62,29 @@ pub struct Assembler {
     pub dofs: DofMap,
     /// Symbolic structure of the free-dof tangent (CSC, sorted rows).
     pub symbolic: SymbolicSparseColMat<usize>,
-    /// Per element: position of each of its 81 entries in the CSC values,
-    /// or `CONSTRAINED`.
-    slots: Vec<[usize; 81]>,
-    /// Per element: its 9 global dofs.
-    element_dofs: Vec<[usize; 9]>,
-    /// Reject triangles that turn over in their plane.
-    pub check_inversion: bool,
-    outputs: Vec<ElementOutput>,
+    terms: Vec<TermBuffers>,
 }
 
 impl Assembler {
-    /// Builds the pattern and the element slots.
-    pub fn new(model: &MembraneModel, dofs: DofMap, check_inversion: bool) -> Self {
+    /// Builds the pattern and the stencil slots of every term of `model`.
+    pub fn new(model: &Model, dofs: DofMap) -> Self {
         let n = dofs.n_free();
-        let element_dofs: Vec<[usize; 9]> = model
-            .triangles
-            .iter()
-            .map(|t| std::array::from_fn(|i| 3 * t[i / 3] + i % 3))
+        let layouts: Vec<(usize, Vec<usize>)> = (0..model.terms.len())
+            .map(|t| stencil_dofs(model, t))
             .collect();
+        let free = |d: usize| if d == NONE { None } else { dofs.free_index[d] };
         let mut columns: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for ed in &element_dofs {
-            for &dj in ed {
-                let Some(j) = dofs.free_index[dj] else {
-                    continue;
-                };
-                for &di in ed {
-                    if let Some(i) = dofs.free_index[di] {
-                        columns[j].push(i);
+        for (size, stencil_dofs) in &layouts {
+            if *size == 0 {
+                continue;
+            }
+            for stencil in stencil_dofs.chunks_exact(*size) {
+                for &dj in stencil {
+                    let Some(j) = free(dj) else { continue };
+                    for &di in stencil {
+                        if let Some(i) = free(di) {
+                            columns[j].push(i);
+                        }
                     }
                 }
             }
@@ -106,34 +98,39 @@ impl Assembler {
             row_idx.extend_from_slice(column);
             col_ptr.push(row_idx.len());
         }
-        let slots = element_dofs
-            .iter()
-            .map(|ed| {
-                let mut s = [CONSTRAINED; 81];
-                for (b, &dj) in ed.iter().enumerate() {
-                    let Some(j) = dofs.free_index[dj] else {
-                        continue;
-                    };
-                    let rows = &row_idx[col_ptr[j]..col_ptr[j + 1]];
-                    for (a, &di) in ed.iter().enumerate() {
-                        if let Some(i) = dofs.free_index[di] {
-                            let k = rows.binary_search(&i).expect("entry is in the pattern");
-                            s[9 * b + a] = col_ptr[j] + k;
+        drop(columns);
+        let terms = layouts
+            .into_iter()
+            .map(|(size, stencil_dofs)| {
+                let count = stencil_dofs.len().checked_div(size).unwrap_or(0);
+                let mut slots = vec![NONE; count * size * size];
+                for (s, stencil) in stencil_dofs.chunks_exact(size.max(1)).enumerate() {
+                    for (b, &dj) in stencil.iter().enumerate() {
+                        let Some(j) = free(dj) else { continue };
+                        let rows = &row_idx[col_ptr[j]..col_ptr[j + 1]];
+                        for (a, &di) in stencil.iter().enumerate() {
+                            if let Some(i) = free(di)
+                                && let Ok(k) = rows.binary_search(&i)
+                            {
+                                slots[s * size * size + size * b + a] = col_ptr[j] + k;
+                            }
                         }
                     }
                 }
-                s
+                TermBuffers {
+                    size,
+                    force: vec![0.0; count * size],
+                    tangent: vec![0.0; count * size * size],
+                    dofs: stencil_dofs,
+                    slots,
+                }
             })
             .collect();
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        let outputs = vec![ElementOutput::default(); model.triangles.len()];
         Self {
             dofs,
             symbolic,
-            slots,
-            element_dofs,
-            check_inversion,
-            outputs,
+            terms,
         }
     }
 
@@ -142,72 +139,25 @@ impl Assembler {
         self.symbolic.row_idx().len()
     }
 
-    fn run_elements(&mut self, model: &MembraneModel, u: &[f64], tangent: bool) {
-        let check_inversion = self.check_inversion;
-        self.outputs
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(e, out)| {
-                let x = model.element_displacements(e, u);
-                let reference = &model.references[e];
-                let result = if tangent {
-                    reference
-                        .force_tangent(&x, &model.material, model.thickness)
-                        .map(|t| (t.kinematics, t.state, t.force, Some(t.stiffness)))
-                } else {
-                    reference
-                        .force(&x, &model.material, model.thickness)
-                        .map(|(k, s, f)| (k, s, f, None))
-                };
-                out.failure = None;
-                match result {
-                    Ok((kin, state, force, stiffness)) => {
-                        if check_inversion && kin.orientation <= 0.0 {
-                            out.failure = Some(ElementFailureKind::Inverted {
-                                orientation: kin.orientation,
-                            });
-                            return;
-                        }
-                        out.energy = model.thickness * reference.area * state.energy;
-                        out.force = force;
-                        if let Some(k) = stiffness {
-                            out.stiffness = k;
-                        }
-                    }
-                    Err(err) => out.failure = Some(ElementFailureKind::Material(err)),
-                }
-            });
-    }
-
-    fn first_failure(&self) -> Result<(), ElementFailure> {
-        match self.outputs.iter().position(|o| o.failure.is_some()) {
-            Some(element) => Err(ElementFailure {
-                element,
-                kind: self.outputs[element].failure.expect("found"),
-            }),
-            None => Ok(()),
-        }
-    }
-
-    /// Total energy `Σ t A0 W` [N·mm] and the internal force `internal`
-    /// (all dofs, [N]) at displacement `u`.
+    /// Total potential `Σ Π_term` [N·mm] and the residual `internal` (all
+    /// dofs, [N]: `f_int − f_ext`) at `state`.
     ///
     /// # Errors
-    /// The lowest-index element that failed.
+    /// The first term (in order) that failed, at its lowest-index stencil.
     pub fn force(
         &mut self,
-        model: &MembraneModel,
-        u: &[f64],
+        model: &mut Model,
+        state: &State,
         internal: &mut [f64],
-    ) -> Result<f64, ElementFailure> {
-        self.run_elements(model, u, false);
-        self.first_failure()?;
+    ) -> Result<f64, TermFailure> {
         internal.fill(0.0);
         let mut energy = 0.0;
-        for (out, ed) in self.outputs.iter().zip(&self.element_dofs) {
-            energy += out.energy;
-            for (a, &d) in ed.iter().enumerate() {
-                internal[d] += out.force[a];
+        for (term, buffers) in model.terms.iter_mut().zip(&mut self.terms) {
+            energy += term.evaluate(state, &mut buffers.force, None)?;
+            for (f, &d) in buffers.force.iter().zip(&buffers.dofs) {
+                if d != NONE {
+                    internal[d] += f;
+                }
             }
         }
         Ok(energy)
@@ -217,28 +167,43 @@ impl Assembler {
     /// (CSC values of [`Assembler::symbolic`]).
     ///
     /// # Errors
-    /// The lowest-index element that failed.
+    /// The first term (in order) that failed, at its lowest-index stencil.
     pub fn force_tangent(
         &mut self,
-        model: &MembraneModel,
-        u: &[f64],
+        model: &mut Model,
+        state: &State,
         internal: &mut [f64],
         values: &mut [f64],
-    ) -> Result<f64, ElementFailure> {
-        self.run_elements(model, u, true);
-        self.first_failure()?;
+    ) -> Result<f64, TermFailure> {
         internal.fill(0.0);
         values.fill(0.0);
         let mut energy = 0.0;
-        for ((out, ed), slots) in self.outputs.iter().zip(&self.element_dofs).zip(&self.slots) {
-            energy += out.energy;
-            for (a, &d) in ed.iter().enumerate() {
-                internal[d] += out.force[a];
+        for (term, buffers) in model.terms.iter_mut().zip(&mut self.terms) {
+            energy += term.evaluate(state, &mut buffers.force, Some(&mut buffers.tangent))?;
+            let size = buffers.size;
+            if size == 0 {
+                continue;
             }
-            for (k, &slot) in slots.iter().enumerate() {
-                if slot != CONSTRAINED {
-                    // Column-major 9×9: entry (a, b) at 9 b + a.
-                    values[slot] += out.stiffness[k];
+            for ((force, dofs), (tangent, slots)) in buffers
+                .force
+                .chunks_exact(size)
+                .zip(buffers.dofs.chunks_exact(size))
+                .zip(
+                    buffers
+                        .tangent
+                        .chunks_exact(size * size)
+                        .zip(buffers.slots.chunks_exact(size * size)),
+                )
+            {
+                for (f, &d) in force.iter().zip(dofs) {
+                    if d != NONE {
+                        internal[d] += f;
+                    }
+                }
+                for (k, &slot) in tangent.iter().zip(slots) {
+                    if slot != NONE {
+                        values[slot] += k;
+                    }
                 }
             }
         }

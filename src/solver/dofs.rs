@@ -18,6 +18,12 @@ impl Dirichlet {
         Self::driven(node, component, 0.0)
     }
 
+    /// `u = per_unit_load · λ` for the dof `dof` (an extra dof of a rigid
+    /// body, say).
+    pub fn dof(dof: usize, per_unit_load: f64) -> Self {
+        Self { dof, per_unit_load }
+    }
+
     /// `u = per_unit_load · λ` for `component` of `node`.
     pub fn driven(node: usize, component: usize, per_unit_load: f64) -> Self {
         Self {
@@ -41,10 +47,15 @@ pub struct DofMap {
 }
 
 impl DofMap {
-    /// Builds the map for `nodes` nodes. A dof constrained twice keeps the
-    /// last condition.
+    /// Builds the map for `nodes` nodes (3 dofs each, no extra dofs). A dof
+    /// constrained twice keeps the last condition.
     pub fn new(nodes: usize, conditions: &[Dirichlet]) -> Self {
-        let total = 3 * nodes;
+        Self::with_total(3 * nodes, conditions)
+    }
+
+    /// Builds the map for `total` dofs (nodes and extra dofs). A dof
+    /// constrained twice keeps the last condition.
+    pub fn with_total(total: usize, conditions: &[Dirichlet]) -> Self {
         let mut condition_of: Vec<Option<f64>> = vec![None; total];
         for c in conditions {
             condition_of[c.dof] = Some(c.per_unit_load);

@@ -1,21 +1,22 @@
-//! Assembly and solvers. The solver knows nothing of OATs or forming
-//! benches: it sees a membrane model, Dirichlet conditions scaled by a load
-//! parameter `λ`, and parameters.
+//! Assembly and solvers. The solvers know nothing of OATs, forming benches
+//! or of which force terms a model has: they see a [`crate::model::Model`]
+//! (its terms' stencils, forces, tangents, frequency bounds, masses and
+//! energies), Dirichlet conditions scaled by a load parameter `λ`, and
+//! parameters.
 
 pub mod assembly;
 pub mod dofs;
 pub mod explicit;
 pub mod linear;
-pub mod model;
 pub mod newton;
 
-pub use assembly::{Assembler, ElementFailure};
+pub use assembly::Assembler;
 pub use dofs::{Dirichlet, DofMap};
 pub use explicit::{
     ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
 };
 pub use linear::{LinearSolverKind, SparseSolver};
-pub use model::MembraneModel;
 pub use newton::{
-    NewtonParameters, QuasiStaticResult, RunStatus, SolverTimings, StepRecord, solve_quasi_static,
+    NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings, StepRecord,
+    solve_quasi_static,
 };

@@ -21,14 +21,23 @@
 //! force_floor)` (relative to the reaction forces) and
 //! `|du·r| ≤ energy_tolerance · |du₀·r₀|` (energy norm, relative to the
 //! step's first iteration).
+//!
+//! Terms with multipliers (augmented-Lagrangian contact) are augmented
+//! between Newton solves at the same load (Uzawa): after each converged
+//! solve every such term updates its multipliers and says whether its
+//! constraints hold to its tolerances; if not, Newton solves again from the
+//! converged state, up to `max_augmentations` times. A step is accepted
+//! when the residual, the gap and the change of the multipliers all pass;
+//! the terms then commit their history (friction references). A failed
+//! step restores the history of the last accepted step.
 
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::assembly::{Assembler, ElementFailure};
+use super::assembly::Assembler;
 use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
-use super::model::MembraneModel;
+use crate::model::{Augmentation, Model, State, TermFailure};
 
 /// Solver knobs, all with documented defaults (`docs/cases.md`).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -58,9 +67,13 @@ pub struct NewtonParameters {
     pub line_search: bool,
     /// Predict each step by extrapolating the previous increment. Default true.
     pub extrapolate: bool,
-    /// Sparse factorisation. Default LDLᵀ (measured 3–8× faster than LU on
-    /// the OATs with identical results; `docs/solver.md`).
-    pub linear_solver: LinearSolverKind,
+    /// Sparse factorisation; unset (the default): LDLᵀ when every term's
+    /// tangent is symmetric (measured 3–8× faster than LU on the OATs with
+    /// identical results; `docs/solver.md`), LU otherwise (friction).
+    pub linear_solver: Option<LinearSolverKind>,
+    /// Newton solves per load step for the multipliers of augmented terms
+    /// (contact) to converge, at most. Default 50.
+    pub max_augmentations: usize,
 }
 
 impl Default for NewtonParameters {
@@ -78,7 +91,8 @@ impl Default for NewtonParameters {
             cutback: 0.5,
             line_search: true,
             extrapolate: true,
-            linear_solver: LinearSolverKind::Ldlt,
+            linear_solver: None,
+            max_augmentations: 50,
         }
     }
 }
@@ -94,12 +108,25 @@ pub struct StepRecord {
     pub reaction: f64,
     /// Total energy [N·mm].
     pub energy: f64,
-    /// Newton iterations of the converged attempt.
+    /// Newton iterations of the converged attempt (over all its
+    /// augmentations).
     pub iterations: usize,
     /// Residual norms `‖r_free‖` of the converged attempt, one per iteration [N].
     pub residuals: Vec<f64>,
     /// Failed attempts before this step converged.
     pub cutbacks: usize,
+    /// Newton solves of the converged attempt beyond the first (multiplier
+    /// updates of augmented terms; 0 without contact).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub augmentations: usize,
+    /// The last augmentation report (gap, multiplier change, active and
+    /// slipping contacts), `None` for a model without augmented terms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<Augmentation>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// How a run ended.
@@ -130,6 +157,8 @@ pub struct SolverTimings {
     pub factorisation: f64,
     /// Triangular solves.
     pub solve: f64,
+    /// Multiplier updates of augmented terms (contact).
+    pub augmentation: f64,
 }
 
 /// Result of a quasi-static run.
@@ -149,13 +178,17 @@ pub struct QuasiStaticResult {
     pub unknowns: usize,
     /// Stored non-zeros of the tangent.
     pub nonzeros: usize,
+    /// The factorisation used.
+    pub linear_solver: LinearSolverKind,
+    /// Newton solves beyond the first per step, summed over the run.
+    pub augmentations: usize,
 }
 
 /// Why one attempt at a load step failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 enum AttemptError {
     #[error("{0}")]
-    Element(#[from] ElementFailure),
+    Term(#[from] TermFailure),
     #[error("{0}")]
     Linear(#[from] LinearSolverError),
     #[error(
@@ -170,6 +203,14 @@ enum AttemptError {
     NoDescent,
     #[error("the line search found no acceptable step")]
     LineSearch,
+    #[error(
+        "the contact multipliers did not converge in {augmentations} augmentations (penetration {penetration:.3e} mm, multiplier change {change:.3e})"
+    )]
+    Augmentation {
+        augmentations: usize,
+        penetration: f64,
+        change: f64,
+    },
 }
 
 /// Scratch of a run, allocated once.
@@ -183,7 +224,10 @@ struct Work {
 
 /// Everything the step loop needs.
 struct Newton<'a> {
-    model: &'a MembraneModel,
+    model: &'a mut Model,
+    /// Load parameter and programme fraction of the step being solved.
+    load: f64,
+    load_fraction: f64,
     assembler: Assembler,
     solver: SparseSolver,
     params: &'a NewtonParameters,
@@ -214,21 +258,31 @@ impl Newton<'_> {
             .sqrt()
     }
 
-    fn assemble_tangent(&mut self, u: &[f64]) -> Result<f64, ElementFailure> {
+    fn state<'u>(&self, u: &'u [f64]) -> State<'u> {
+        State {
+            u,
+            load: self.load,
+            load_fraction: self.load_fraction,
+        }
+    }
+
+    fn assemble_tangent(&mut self, u: &[f64]) -> Result<f64, TermFailure> {
         let start = Instant::now();
+        let state = self.state(u);
         let values = self.solver.values_mut();
-        let result = self
-            .assembler
-            .force_tangent(self.model, u, &mut self.work.internal, values);
+        let result =
+            self.assembler
+                .force_tangent(self.model, &state, &mut self.work.internal, values);
         self.timings.assembly += start.elapsed().as_secs_f64();
         result
     }
 
-    fn assemble_force_into_trial(&mut self, u: &[f64]) -> Result<f64, ElementFailure> {
+    fn assemble_force_into_trial(&mut self, u: &[f64]) -> Result<f64, TermFailure> {
         let start = Instant::now();
+        let state = self.state(u);
         let result = self
             .assembler
-            .force(self.model, u, &mut self.work.trial_internal);
+            .force(self.model, &state, &mut self.work.trial_internal);
         self.timings.assembly += start.elapsed().as_secs_f64();
         result
     }
@@ -249,7 +303,7 @@ impl Newton<'_> {
     }
 
     /// `g(α) = r(u + α du)·du` with `u + α du` written to `trial`.
-    fn directional(&mut self, u: &[f64], du: &[f64], alpha: f64) -> Result<f64, ElementFailure> {
+    fn directional(&mut self, u: &[f64], du: &[f64], alpha: f64) -> Result<f64, TermFailure> {
         let mut trial = std::mem::take(&mut self.work.trial);
         trial.copy_from_slice(u);
         for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
@@ -410,32 +464,116 @@ impl Newton<'_> {
     }
 }
 
+/// A converged load step: Newton solves and augmentations.
+struct Solved {
+    iterations: usize,
+    residuals: Vec<f64>,
+    energy: f64,
+    augmentations: usize,
+    contact: Option<Augmentation>,
+}
+
+impl Newton<'_> {
+    /// Newton solves at the current load from `u` (updated in place),
+    /// updating the multipliers of augmented terms between them until
+    /// every term's constraints hold.
+    fn solve_with_augmentations(&mut self, u: &mut [f64]) -> Result<Solved, AttemptError> {
+        let mut iterations = 0;
+        let mut residuals = Vec::new();
+        for augmentations in 0..=self.params.max_augmentations {
+            let (its, history, energy) = self.iterate(u)?;
+            iterations += its;
+            residuals.extend(history);
+            let clock = Instant::now();
+            let state = self.state(u);
+            let report = self.model.augment(&state);
+            self.timings.augmentation += clock.elapsed().as_secs_f64();
+            match report {
+                None => {
+                    return Ok(Solved {
+                        iterations,
+                        residuals,
+                        energy,
+                        augmentations,
+                        contact: None,
+                    });
+                }
+                Some(r) if r.converged => {
+                    return Ok(Solved {
+                        iterations,
+                        residuals,
+                        energy,
+                        augmentations,
+                        contact: Some(r),
+                    });
+                }
+                Some(r) if augmentations == self.params.max_augmentations => {
+                    return Err(AttemptError::Augmentation {
+                        augmentations,
+                        penetration: r.max_penetration,
+                        change: r.multiplier_change,
+                    });
+                }
+                Some(_) => {}
+            }
+        }
+        unreachable!("the loop returns at max_augmentations")
+    }
+}
+
+/// What a step or output callback sees: the converged displacement, the
+/// residual of every dof (the reaction at a constrained one, [N]) and the
+/// model (for terms' own outputs: contact forces, say).
+pub struct Snapshot<'a> {
+    /// Displacement of every dof [mm].
+    pub u: &'a [f64],
+    /// `f_int − f_ext` of every dof [N].
+    pub residual: &'a [f64],
+    /// The model at this state.
+    pub model: &'a Model,
+}
+
 /// Drives `λ` from 0 to `final_load`, landing exactly on every value in
 /// `stops` (sorted, within (0, final_load]); calls `on_step` after every
-/// converged step with the record and the displacement (all dofs, [mm]).
+/// converged step with the record and the state.
 ///
-/// `u` must hold the initial displacement (usually zeros, length 3 × nodes).
-/// `check_inversion` rejects triangles that turn over in their plane (for
-/// planar models).
+/// `u` must hold the initial displacement (usually zeros, one per dof of
+/// `model`).
 ///
 /// # Errors
-/// Only set-up failures (the symbolic factorisation); a failed solve is a
-/// result with [`RunStatus::Incomplete`].
-#[allow(clippy::too_many_arguments)]
+/// Only set-up failures (the symbolic factorisation, a symmetric solver
+/// asked for an unsymmetric tangent); a failed solve is a result with
+/// [`RunStatus::Incomplete`].
 pub fn solve_quasi_static(
-    model: &MembraneModel,
+    model: &mut Model,
     dofs: super::dofs::DofMap,
-    check_inversion: bool,
     params: &NewtonParameters,
     final_load: f64,
     stops: &[f64],
     u: &mut [f64],
-    mut on_step: impl FnMut(&StepRecord, &[f64]),
+    mut on_step: impl FnMut(&StepRecord, &Snapshot),
 ) -> Result<QuasiStaticResult, String> {
     let start = Instant::now();
-    let assembler = Assembler::new(model, dofs, check_inversion);
-    let solver = SparseSolver::new(params.linear_solver, assembler.symbolic.clone())
-        .map_err(|e| e.to_string())?;
+    if dofs.total != model.dofs() || u.len() != model.dofs() {
+        return Err(format!(
+            "the dof map has {} dofs and the state {}, the model {}",
+            dofs.total,
+            u.len(),
+            model.dofs()
+        ));
+    }
+    let symmetric = model.symmetric();
+    let linear_solver = match params.linear_solver {
+        None if symmetric => LinearSolverKind::Ldlt,
+        None => LinearSolverKind::Lu,
+        Some(LinearSolverKind::Ldlt) if !symmetric => {
+            return Err("solver.linear_solver = \"ldlt\": expected a symmetric tangent, but friction makes this model's tangent unsymmetric; use \"lu\" or leave linear_solver unset".into());
+        }
+        Some(kind) => kind,
+    };
+    let assembler = Assembler::new(model, dofs);
+    let solver =
+        SparseSolver::new(linear_solver, assembler.symbolic.clone()).map_err(|e| e.to_string())?;
     let symbolic_time = start.elapsed().as_secs_f64();
     let n_total = assembler.dofs.total;
     let n_free = assembler.dofs.n_free();
@@ -444,12 +582,14 @@ pub fn solve_quasi_static(
     let diag_slots: Vec<usize> = (0..n_free)
         .map(|j| {
             let col = &symbolic.row_idx()[symbolic.col_ptr()[j]..symbolic.col_ptr()[j + 1]];
-            symbolic.col_ptr()[j] + col.binary_search(&j).expect("diagonal in pattern")
+            symbolic.col_ptr()[j] + col.binary_search(&j).unwrap_or(0)
         })
         .collect();
     let nonzeros = assembler.nnz();
     let mut newton = Newton {
         model,
+        load: 0.0,
+        load_fraction: 0.0,
         assembler,
         solver,
         params,
@@ -477,11 +617,19 @@ pub fn solve_quasi_static(
     stops.sort_by(f64::total_cmp);
     stops.dedup();
 
+    let fraction = |load: f64| {
+        if final_load != 0.0 {
+            (load / final_load).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
     let mut load = 0.0;
     let mut increment = params.initial_increment.min(final_load);
     let mut last_increment: Option<(f64, Vec<f64>)> = None;
     let mut steps = Vec::new();
     let mut cutbacks = 0;
+    let mut total_augmentations = 0;
     let mut trial_u = u.to_vec();
     let tiny = 1e-12 * final_load.abs().max(1.0);
     let status = loop {
@@ -495,8 +643,13 @@ pub fn solve_quasi_static(
             .unwrap_or(final_load);
         let target = (load + increment).min(next_stop);
         let step_increment = target - load;
-        // Predictor: prescribed values at the target, free dofs extrapolated.
+        newton.load = target;
+        newton.load_fraction = fraction(target);
+        // Predictor: prescribed values at the target, free dofs extrapolated;
+        // then Newton solves, augmenting between them.
         let mut attempt = |extrapolate: bool, trial_u: &mut Vec<f64>| {
+            // Every attempt starts from the history of the last accepted step.
+            newton.model.restore();
             trial_u.copy_from_slice(u);
             for c in &newton.assembler.dofs.constrained {
                 trial_u[c.dof] = c.per_unit_load * target;
@@ -507,16 +660,18 @@ pub fn solve_quasi_static(
                     trial_u[d] += ratio * delta[d];
                 }
             }
-            newton.iterate(trial_u)
+            newton.solve_with_augmentations(trial_u)
         };
         let mut result = attempt(params.extrapolate && last_increment.is_some(), &mut trial_u);
         if params.extrapolate && last_increment.is_some() && result.is_err() {
             result = attempt(false, &mut trial_u);
         }
         match result {
-            Ok((iterations, residuals, energy)) => {
+            Ok(solved) => {
                 let delta: Vec<f64> = trial_u.iter().zip(u.iter()).map(|(a, b)| a - b).collect();
                 u.copy_from_slice(&trial_u);
+                let state = newton.state(u);
+                newton.model.commit(&state);
                 let reaction: f64 = newton
                     .assembler
                     .dofs
@@ -525,26 +680,38 @@ pub fn solve_quasi_static(
                     .map(|c| c.per_unit_load * newton.work.internal[c.dof])
                     .sum();
                 load = target;
+                total_augmentations += solved.augmentations;
                 let record = StepRecord {
                     step: steps.len() + 1,
                     load,
                     reaction,
-                    energy,
-                    iterations,
-                    residuals,
+                    energy: solved.energy,
+                    iterations: solved.iterations,
+                    residuals: solved.residuals,
                     cutbacks,
+                    augmentations: solved.augmentations,
+                    contact: solved.contact,
                 };
-                on_step(&record, u);
+                on_step(
+                    &record,
+                    &Snapshot {
+                        u,
+                        residual: &newton.work.internal,
+                        model: newton.model,
+                    },
+                );
+                let iterations = record.iterations;
                 steps.push(record);
                 cutbacks = 0;
                 last_increment = Some((step_increment, delta));
-                if iterations <= params.easy_iterations {
+                if iterations <= params.easy_iterations * (1 + solved.augmentations) {
                     increment = (increment * params.growth).min(params.max_increment);
                 }
                 // A step shortened to land on a stop does not shrink the next.
                 increment = increment.max(step_increment.min(params.max_increment));
             }
             Err(err) => {
+                newton.model.restore();
                 cutbacks += 1;
                 increment = step_increment * params.cutback;
                 if increment < params.min_increment {
@@ -565,5 +732,7 @@ pub fn solve_quasi_static(
         timings: newton.timings,
         unknowns: n_free,
         nonzeros,
+        linear_solver,
+        augmentations: total_augmentations,
     })
 }

@@ -34,8 +34,8 @@ pub use params::{Amplitude, ExplicitParameters, SettingError, TimeStepControl};
 pub use system::{MassSummary, NODE_BLOCK, SetupError};
 
 use super::dofs::DofMap;
-use super::model::MembraneModel;
-use super::newton::RunStatus;
+use super::newton::{RunStatus, Snapshot};
+use crate::model::{Model, State, TermEnergy, TermFailure};
 pub use system::{ExplicitSystem, Update};
 
 /// Displacement and velocity of every dof (3 per node).
@@ -61,30 +61,34 @@ impl ExplicitState {
 /// The energies at one instant [N·mm = mJ].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Energies {
-    /// Internal (strain) energy `Σ t A0 W`.
+    /// Internal (strain) energy: membranes `Σ t A0 W` and bending.
     pub internal: f64,
+    /// Elastic energy stored in contact penalties and friction springs.
+    pub contact: f64,
     /// Kinetic energy `½ Σ m v²` of the free dofs.
     pub kinetic: f64,
-    /// Work of the prescribed motion on the membrane, `∫ R dλ`.
+    /// Work done on the model: by the prescribed motions, `∫ R dλ`, and by
+    /// the loads (gravity, dead loads, weights), `∫ f·du`.
     pub external_work: f64,
+    /// Of `external_work`, the part done by the loads.
+    pub load_work: f64,
     /// Energy dissipated by the mass-proportional damping.
     pub damping: f64,
-    /// `IE + KE + D − W − (IE + KE)₀`: zero for an exact integration.
+    /// Energy dissipated by friction.
+    pub friction: f64,
+    /// `IE + CE + KE + D + F − W − (IE + CE + KE)₀`: zero for an exact
+    /// integration.
     pub balance_error: f64,
-    /// `|balance_error|` over the largest of `W`, `IE + KE + D` and
-    /// `(IE + KE)₀` (zero when all vanish).
+    /// `|balance_error|` over the largest of `W`, `IE + CE + KE + D + F`
+    /// and `(IE + CE + KE)₀` (zero when all vanish).
     pub relative_balance_error: f64,
 }
 
 impl Energies {
     fn balance(&mut self, initial: f64) {
-        self.balance_error =
-            self.internal + self.kinetic + self.damping - self.external_work - initial;
-        let scale = self
-            .external_work
-            .abs()
-            .max(self.internal + self.kinetic + self.damping)
-            .max(initial.abs());
+        let held = self.internal + self.contact + self.kinetic + self.damping + self.friction;
+        self.balance_error = held - self.external_work - initial;
+        let scale = self.external_work.abs().max(held).max(initial.abs());
         self.relative_balance_error = if scale > 0.0 {
             self.balance_error.abs() / scale
         } else {
@@ -134,6 +138,15 @@ pub struct ExplicitTimings {
     pub outputs: f64,
 }
 
+/// Adds the terms' energies to `energies` (internal, contact, load work,
+/// friction), leaving the solver's own parts.
+fn add_term_energies(energies: &mut Energies, terms: TermEnergy) {
+    energies.internal = terms.internal;
+    energies.contact = terms.contact;
+    energies.load_work = terms.external_work;
+    energies.friction = terms.dissipated;
+}
+
 /// Result of an explicit run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExplicitResult {
@@ -143,7 +156,7 @@ pub struct ExplicitResult {
     pub records: Vec<ExplicitRecord>,
     /// Time increments.
     pub increments: usize,
-    /// `increments × triangles`.
+    /// `increments × triangles` (the stencils of the model's largest term).
     pub element_cycles: u64,
     /// The estimated critical step at the start, before the safety factor [s].
     pub initial_critical_time_step: f64,
@@ -172,6 +185,9 @@ pub enum ExplicitError {
     /// The model cannot be integrated.
     #[error("explicit solver: {0}")]
     Setup(#[from] SetupError),
+    /// A term fails at the initial state.
+    #[error("explicit solver: initial state: {0}")]
+    Term(#[from] TermFailure),
     /// The thread pool could not be built.
     #[error("explicit solver: cannot start the worker threads: {0}")]
     Threads(String),
@@ -187,9 +203,8 @@ pub enum ExplicitError {
 
 /// Buffers of the time loop, allocated once.
 struct Buffers {
-    forces: Vec<[f64; 9]>,
+    forces: Vec<f64>,
     internal: Vec<f64>,
-    element_energy: Vec<f64>,
     partial: Vec<f64>,
     damping_partial: Vec<f64>,
 }
@@ -197,20 +212,20 @@ struct Buffers {
 /// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
 /// of `dofs` following `λ(t) = final_load · shape(t/T)`, calling `on_output`
 /// at each time of `output_times` (those in `(0, T]`, sorted; `T` is always
-/// one) with the record and the displacement.
+/// one) with the record and the state.
 ///
 /// # Errors
 /// Bad settings or a model that cannot start; a run that fails on the way is
 /// a result with [`RunStatus::Incomplete`] whose records stop at the last
 /// output before the failure.
 pub fn solve_explicit(
-    model: &MembraneModel,
+    model: &mut Model,
     dofs: &DofMap,
     params: &ExplicitParameters,
     final_load: f64,
     output_times: &[f64],
     state: &mut ExplicitState,
-    on_output: impl FnMut(&ExplicitRecord, &[f64]) + Send,
+    on_output: impl FnMut(&ExplicitRecord, &Snapshot) + Send,
 ) -> Result<ExplicitResult, ExplicitError> {
     params.validate()?;
     // The time loop runs on a worker of its own pool: its parallel passes
@@ -232,24 +247,36 @@ pub fn solve_explicit(
     })
 }
 
+/// The state of the terms at displacement `u`, load and programme fraction.
+fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
+    State {
+        u,
+        load,
+        load_fraction,
+    }
+}
+
 /// The body of [`solve_explicit`], inside its thread pool.
 fn integrate(
-    model: &MembraneModel,
+    model: &mut Model,
     dofs: &DofMap,
     params: &ExplicitParameters,
     final_load: f64,
     output_times: &[f64],
     state: &mut ExplicitState,
-    mut on_output: impl FnMut(&ExplicitRecord, &[f64]),
+    mut on_output: impl FnMut(&ExplicitRecord, &Snapshot),
 ) -> Result<ExplicitResult, ExplicitError> {
     let start = Instant::now();
-    for given in [state.u.len(), state.v.len()] {
-        if given != dofs.total {
+    for given in [state.u.len(), state.v.len(), dofs.total] {
+        if given != model.dofs() {
             return Err(ExplicitError::StateSize {
-                expected: dofs.total,
+                expected: model.dofs(),
                 given,
             });
         }
+    }
+    for term in &model.terms {
+        term.validate_explicit()?;
     }
     let (safety, update_interval) = match params.time_step {
         TimeStepControl::Stable {
@@ -258,21 +285,33 @@ fn integrate(
         } => (safety_factor, update_interval),
         TimeStepControl::Fixed { .. } => (1.0, usize::MAX),
     };
+    let u = &mut state.u;
+    let v = &mut state.v;
+    // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
+    // initial state says.
+    let load_at = |t: f64| final_load * params.load_fraction(t);
+    let fraction_at = |t: f64| params.load_fraction(t);
+    for c in &dofs.constrained {
+        u[c.dof] = c.per_unit_load * load_at(0.0);
+    }
+    let start_load = (load_at(0.0), fraction_at(0.0));
     let system = ExplicitSystem::new(
         model,
         dofs,
-        params.density,
         params.mass_scaling_target.map(|t| (t, safety)),
-        params.check_inversion,
-        &state.u,
+        &state_at(u, start_load),
     )?;
-    let n_elements = system.elements.len();
+    // Terms whose stiffness follows the step (penalties) pick it from the
+    // step of the others, then count in the estimate.
+    let without_penalties = system.critical_time_step_of(model, &state_at(u, start_load), false)?;
+    for term in &mut model.terms {
+        term.explicit_setup(&state_at(u, start_load), &system.masses, without_penalties)?;
+    }
     let mut buffers = Buffers {
-        forces: vec![[0.0; 9]; n_elements],
+        forces: vec![0.0; system.force_len()],
         internal: vec![0.0; dofs.total],
-        element_energy: vec![0.0; n_elements],
-        partial: vec![0.0; system.node_blocks()],
-        damping_partial: vec![0.0; system.node_blocks()],
+        partial: vec![0.0; system.partials()],
+        damping_partial: vec![0.0; system.partials()],
     };
     let mut times: Vec<f64> = output_times
         .iter()
@@ -283,20 +322,8 @@ fn integrate(
     times.sort_by(f64::total_cmp);
     times.dedup();
 
-    let u = &mut state.u;
-    let v = &mut state.v;
-    // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
-    // initial state says.
-    let load_at = |t: f64| final_load * params.load_fraction(t);
-    for c in &dofs.constrained {
-        u[c.dof] = c.per_unit_load * load_at(0.0);
-    }
-    system
-        .element_forces(u, &mut buffers.forces)
-        .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
-    let initial_critical = system
-        .critical_time_step(u)
-        .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
+    system.element_forces(model, &state_at(u, start_load), &mut buffers.forces)?;
+    let initial_critical = system.critical_time_step(model, &state_at(u, start_load))?;
     let stable_step = |critical: f64| match params.time_step {
         TimeStepControl::Stable { .. } => safety * critical,
         TimeStepControl::Fixed { time_step } => time_step,
@@ -313,16 +340,23 @@ fn integrate(
         setup: start.elapsed().as_secs_f64(),
         ..Default::default()
     };
+    let element_count = model
+        .terms
+        .iter()
+        .map(|t| t.explicit_stencils().count)
+        .max()
+        .unwrap_or(0);
 
     // Energies at t = 0.
     let mut energies = Energies::default();
     let mut reaction = system.reaction(&buffers.forces);
-    let kinetic_and_internal = |system: &ExplicitSystem,
-                                buffers: &mut Buffers,
-                                u: &[f64],
-                                v: &[f64],
-                                half_step: f64|
-     -> Result<(f64, f64, f64), super::assembly::ElementFailure> {
+    let kinetic_and_terms = |system: &ExplicitSystem,
+                             model: &mut Model,
+                             buffers: &mut Buffers,
+                             state: &State,
+                             v: &[f64],
+                             half_step: f64|
+     -> Result<(f64, f64, TermEnergy), TermFailure> {
         system.gather_with_kinetic(
             &buffers.forces,
             v,
@@ -334,23 +368,33 @@ fn integrate(
         );
         let kinetic: f64 = buffers.partial.iter().sum();
         let half_step_damping: f64 = buffers.damping_partial.iter().sum();
-        system.strain_energies(u, &mut buffers.element_energy)?;
-        let internal: f64 = buffers.element_energy.iter().sum();
-        Ok((kinetic, internal, half_step_damping))
+        let mut terms = TermEnergy::default();
+        for term in &mut model.terms {
+            terms += term.energy(state)?;
+        }
+        Ok((kinetic, half_step_damping, terms))
     };
     {
         // At t = 0 the velocity is v_0 itself: no half step.
-        let (kinetic, internal, _) = kinetic_and_internal(&system, &mut buffers, u, v, 0.0)
-            .map_err(|e| ExplicitError::Setup(SetupError::Element(e)))?;
+        let (kinetic, _, terms) = kinetic_and_terms(
+            &system,
+            model,
+            &mut buffers,
+            &state_at(u, start_load),
+            v,
+            0.0,
+        )?;
         energies.kinetic = kinetic;
-        energies.internal = internal;
+        add_term_energies(&mut energies, terms);
     }
-    let initial_energy = energies.internal + energies.kinetic;
+    let initial_energy = energies.internal + energies.contact + energies.kinetic;
+    let initial_load_work = energies.load_work;
 
     let mut records = Vec::with_capacity(times.len());
     let mut warnings = Vec::new();
     let mut time = 0.0;
     let mut load = load_at(0.0);
+    let mut driven_work = 0.0;
     let mut previous_step = 0.0;
     let mut increments = 0usize;
     let mut step_range = (f64::INFINITY, 0.0_f64);
@@ -359,6 +403,7 @@ fn integrate(
     let mut next_output = 0;
     let mut last_output_load = load;
     let ke_check_from = 0.1 * final_load.abs();
+    let mut damping_energy = 0.0;
 
     let status = loop {
         let Some(&target) = times.get(next_output) else {
@@ -371,11 +416,8 @@ fn integrate(
         } else {
             (time_step, false)
         };
-        let load_next = if lands {
-            load_at(target)
-        } else {
-            load_at(time + dt)
-        };
+        let time_next = if lands { target } else { time + dt };
+        let load_next = load_at(time_next);
         let clock = Instant::now();
         system.update(
             &buffers.forces,
@@ -390,16 +432,17 @@ fn integrate(
             },
         );
         if params.damping > 0.0 {
-            energies.damping += buffers.partial.iter().sum::<f64>();
+            damping_energy += buffers.partial.iter().sum::<f64>();
         }
         timings.node_pass += clock.elapsed().as_secs_f64();
-        time = if lands { target } else { time + dt };
+        time = time_next;
         previous_step = dt;
         increments += 1;
         step_range = (step_range.0.min(dt), step_range.1.max(dt));
 
         let clock = Instant::now();
-        let pass = system.element_forces(u, &mut buffers.forces);
+        let now = (load_next, fraction_at(time));
+        let pass = system.element_forces(model, &state_at(u, now), &mut buffers.forces);
         timings.element_pass += clock.elapsed().as_secs_f64();
         if let Err(failure) = pass {
             break RunStatus::Incomplete {
@@ -411,29 +454,37 @@ fn integrate(
             };
         }
         let new_reaction = system.reaction(&buffers.forces);
-        energies.external_work += 0.5 * (reaction + new_reaction) * (load_next - load);
+        driven_work += 0.5 * (reaction + new_reaction) * (load_next - load);
         reaction = new_reaction;
         load = load_next;
 
         if lands {
             let clock = Instant::now();
-            let (kinetic, internal, half_step_damping) =
-                match kinetic_and_internal(&system, &mut buffers, u, v, 0.5 * dt) {
-                    Ok(pair) => pair,
-                    Err(failure) => {
-                        break RunStatus::Incomplete {
-                            load_reached: last_output_load,
-                            load_attempted: load,
-                            reason: format!("output at t = {time:.6e} s: {failure}"),
-                        };
-                    }
-                };
+            let (kinetic, half_step_damping, terms) = match kinetic_and_terms(
+                &system,
+                model,
+                &mut buffers,
+                &state_at(u, now),
+                v,
+                0.5 * dt,
+            ) {
+                Ok(parts) => parts,
+                Err(failure) => {
+                    break RunStatus::Incomplete {
+                        load_reached: last_output_load,
+                        load_attempted: load,
+                        reason: format!("output at t = {time:.6e} s: {failure}"),
+                    };
+                }
+            };
             // The reported energies are at t_n: the running damping sum
             // reaches t_{n−½}, the last half step is added for the report.
             let mut reported = energies;
             reported.kinetic = kinetic;
-            reported.internal = internal;
-            reported.damping += half_step_damping;
+            add_term_energies(&mut reported, terms);
+            reported.load_work -= initial_load_work;
+            reported.external_work = driven_work + reported.load_work;
+            reported.damping = damping_energy + half_step_damping;
             reported.balance(initial_energy);
             max_balance = max_balance.max(reported.relative_balance_error);
             if load.abs() >= ke_check_from && final_load != 0.0 {
@@ -459,7 +510,14 @@ fn integrate(
                 energies: reported,
             };
             records.push(record);
-            on_output(&record, u);
+            on_output(
+                &record,
+                &Snapshot {
+                    u,
+                    residual: &buffers.internal,
+                    model,
+                },
+            );
             last_output_load = load;
             next_output += 1;
             timings.outputs += clock.elapsed().as_secs_f64();
@@ -467,7 +525,7 @@ fn integrate(
 
         if increments.is_multiple_of(update_interval) {
             let clock = Instant::now();
-            match system.critical_time_step(u) {
+            match system.critical_time_step(model, &state_at(u, now)) {
                 Ok(critical) => time_step = stable_step(critical),
                 Err(failure) => {
                     break RunStatus::Incomplete {
@@ -485,7 +543,7 @@ fn integrate(
         status,
         records,
         increments,
-        element_cycles: increments as u64 * n_elements as u64,
+        element_cycles: increments as u64 * element_count as u64,
         initial_critical_time_step: initial_critical,
         time_step_range: if increments > 0 {
             step_range

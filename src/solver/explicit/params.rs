@@ -79,8 +79,6 @@ pub enum TimeStepControl {
 /// Everything the explicit solver needs besides the model and the loading.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ExplicitParameters {
-    /// Mass density `ρ` [t/mm³] (areal mass / thickness).
-    pub density: f64,
     /// Duration `T` of the prescribed motion [s].
     pub duration: f64,
     /// Shape of the prescribed motion.
@@ -96,20 +94,16 @@ pub struct ExplicitParameters {
     /// Warn when the kinetic energy exceeds this fraction of the internal
     /// energy (checked once `λ` passes 10 % of its final value).
     pub kinetic_energy_warning: f64,
-    /// Reject triangles that turn over in their plane (planar models).
-    pub check_inversion: bool,
     /// Worker threads; 0 takes rayon's default (all cores, or
     /// `RAYON_NUM_THREADS`). Results do not depend on it.
     pub threads: usize,
 }
 
 impl ExplicitParameters {
-    /// Defaults for a run of duration `duration` [s] at density `density`
-    /// [t/mm³]: smooth step, safety factor 0.9 updated every 100 steps, no
+    /// Defaults for a run of duration `duration` [s]: smooth step, safety factor 0.9 updated every 100 steps, no
     /// mass scaling, no damping, warning at KE > 1 % of IE, all cores.
-    pub fn new(density: f64, duration: f64) -> Self {
+    pub fn new(duration: f64) -> Self {
         Self {
-            density,
             duration,
             amplitude: Amplitude::SmoothStep,
             time_step: TimeStepControl::Stable {
@@ -119,7 +113,6 @@ impl ExplicitParameters {
             mass_scaling_target: None,
             damping: 0.0,
             kinetic_energy_warning: 0.01,
-            check_inversion: true,
             threads: 0,
         }
     }
@@ -140,7 +133,6 @@ impl ExplicitParameters {
                 })
             }
         };
-        positive("density", self.density)?;
         positive("duration", self.duration)?;
         match self.time_step {
             TimeStepControl::Stable {
