@@ -304,14 +304,17 @@ fn pvd_lists_entries_in_order() {
         PvdEntry {
             time: 0.0,
             file: "run/step_0000.vtu".into(),
+            part: 0,
         },
         PvdEntry {
             time: 0.1,
             file: "run/step_0001.vtu".into(),
+            part: 0,
         },
         PvdEntry {
             time: 1e-7,
             file: "run/a&b.vtu".into(),
+            part: 0,
         },
     ];
     write_pvd(&path, &entries, &["off-axis tension, units: mm, s".into()]).unwrap();
@@ -341,6 +344,7 @@ fn pvd_lists_entries_in_order() {
     let bad = [PvdEntry {
         time: f64::NAN,
         file: "x.vtu".into(),
+        part: 0,
     }];
     let err = write_pvd(&dir.path().join("bad.pvd"), &bad, &[]).unwrap_err();
     assert_eq!(err.kind(), ErrorKind::InvalidInput);

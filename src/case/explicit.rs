@@ -65,17 +65,17 @@ pub enum SolverKind {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct ExplicitRaw {
-    clamp_speed: Option<Spanned<f64>>,
-    duration: Option<Spanned<f64>>,
-    amplitude: Option<Spanned<String>>,
-    safety_factor: Option<Spanned<f64>>,
-    time_step: Option<Spanned<f64>>,
-    time_step_update_interval: Option<Spanned<i64>>,
-    mass_scaling_time_step: Option<Spanned<f64>>,
-    damping: Option<Spanned<f64>>,
-    kinetic_energy_warning: Option<Spanned<f64>>,
-    history_interval: Option<Spanned<f64>>,
-    threads: Option<Spanned<i64>>,
+    pub(super) clamp_speed: Option<Spanned<f64>>,
+    pub(super) duration: Option<Spanned<f64>>,
+    pub(super) amplitude: Option<Spanned<String>>,
+    pub(super) safety_factor: Option<Spanned<f64>>,
+    pub(super) time_step: Option<Spanned<f64>>,
+    pub(super) time_step_update_interval: Option<Spanned<i64>>,
+    pub(super) mass_scaling_time_step: Option<Spanned<f64>>,
+    pub(super) damping: Option<Spanned<f64>>,
+    pub(super) kinetic_energy_warning: Option<Spanned<f64>>,
+    pub(super) history_interval: Option<Spanned<f64>>,
+    pub(super) threads: Option<Spanned<i64>>,
 }
 
 /// Validated explicit settings of a case.

@@ -3,6 +3,8 @@
 //! conditions. Field-by-field documentation: `docs/cases.md`.
 
 pub mod explicit;
+pub mod forming;
+pub mod forming_model;
 pub mod oat;
 
 pub use explicit::{ExplicitSettings, SolverKind};

@@ -1,5 +1,4 @@
-//! The off-axis tension test (paper Section 4; `shared/spec/scenarios.md`
-//! §1): a flat rectangle `x ∈ [0, W]`, `y ∈ [0, L]`, rovings at the bias
+//! The off-axis tension test (paper Section 4; `docs/cases.md`): a flat rectangle `x ∈ [0, W]`, `y ∈ [0, L]`, rovings at the bias
 //! angle θ from the load axis `y`, `a0 = (sin θ, cos θ)`. The edge `y = 0` is
 //! clamped; the edge `y = L` is fixed in `x` and `z` and pulled in `+y` to
 //! the final displacement. The test is in-plane: every `z` is fixed.
@@ -335,27 +334,7 @@ impl OatCase {
             output_displacements.push(contour_displacement);
             output_displacements.sort_by(f64::total_cmp);
         }
-        let (solver_kind, solver) = match raw.solver {
-            None => (SolverKind::QuasiStatic, NewtonParameters::default()),
-            Some(choice) => {
-                let line = check.line_of(&choice);
-                match choice.into_inner() {
-                    SolverChoice::Newton(p) => (SolverKind::QuasiStatic, p),
-                    SolverChoice::Method(m) => match m.as_str() {
-                        "quasi-static" => (SolverKind::QuasiStatic, NewtonParameters::default()),
-                        "explicit" => (SolverKind::Explicit, NewtonParameters::default()),
-                        other => {
-                            return Err(check.invalid(
-                                line,
-                                "solver",
-                                format!("\"{other}\""),
-                                "\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs",
-                            ));
-                        }
-                    },
-                }
-            }
-        };
+        let (solver_kind, solver) = solver_choice(raw.solver, &check)?;
         validate_solver(&solver, source)?;
         let explicit = ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, displacement)?;
         let material_raw = raw.material.as_ref();
@@ -622,7 +601,37 @@ pub fn oat_clamps(
     conditions
 }
 
-fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {
+/// The top-level `solver` key: a method name or a `[solver]` table of
+/// Newton knobs (quasi-static).
+pub(super) fn solver_choice(
+    choice: Option<Spanned<SolverChoice>>,
+    check: &TomlChecker,
+) -> Result<(SolverKind, NewtonParameters), ConfigError> {
+    Ok(match choice {
+        None => (SolverKind::QuasiStatic, NewtonParameters::default()),
+        Some(choice) => {
+            let line = check.line_of(&choice);
+            match choice.into_inner() {
+                SolverChoice::Newton(p) => (SolverKind::QuasiStatic, p),
+                SolverChoice::Method(m) => match m.as_str() {
+                    "quasi-static" => (SolverKind::QuasiStatic, NewtonParameters::default()),
+                    "explicit" => (SolverKind::Explicit, NewtonParameters::default()),
+                    other => {
+                        return Err(check.invalid(
+                            line,
+                            "solver",
+                            format!("\"{other}\""),
+                            "\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs",
+                        ));
+                    }
+                },
+            }
+        }
+    })
+}
+
+/// Checks the Newton knobs of a `[solver]` table.
+pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {
     let bad = |key: &str, value: String, expected: &str| ConfigError::Invalid {
         source: source.to_string(),
         line: 0,

@@ -162,43 +162,71 @@ const UNITS: &str = "mm, N, MPa, tonne/mm^3, s; angles in degrees";
 
 /// How progress is shown.
 pub enum Progress {
-    /// A bar on a terminal.
-    Bar(ProgressBar),
+    /// A bar on a terminal; `true` for a forming programme (fraction λ).
+    Bar(ProgressBar, bool),
     /// A line every tenth of the stroke (CI, pipes).
     Lines {
-        /// Next displacement to report at.
+        /// Next load to report at.
         next: f64,
+        /// `true` for a forming programme (fraction λ).
+        programme: bool,
     },
     /// Nothing.
     Quiet,
 }
 
 impl Progress {
-    /// A bar when stderr is a terminal, quiet lines otherwise.
+    /// A bar when stderr is a terminal, quiet lines otherwise, for an OAT
+    /// of stroke `total` [mm].
     pub fn auto(total: f64) -> Self {
+        Self::with_kind(total, false)
+    }
+
+    /// As [`Progress::auto`] for a forming programme (`λ` from 0 to 1).
+    pub fn auto_programme() -> Self {
+        Self::with_kind(1.0, true)
+    }
+
+    fn with_kind(total: f64, programme: bool) -> Self {
         if std::io::stderr().is_terminal() {
             let bar = ProgressBar::new((total * 1000.0).round() as u64);
-            bar.set_style(
-                ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} d = {msg}")
-                    .expect("valid template"),
-            );
-            Progress::Bar(bar)
+            let template = if programme {
+                "{spinner} [{elapsed_precise}] {bar:40} λ = {msg}"
+            } else {
+                "{spinner} [{elapsed_precise}] {bar:40} d = {msg}"
+            };
+            if let Ok(style) = ProgressStyle::with_template(template) {
+                bar.set_style(style);
+            }
+            Progress::Bar(bar, programme)
         } else {
-            Progress::Lines { next: 0.0 }
+            Progress::Lines {
+                next: 0.0,
+                programme,
+            }
         }
     }
 
-    /// Shows the state at clamp displacement `load` with force `reaction`
-    /// and a solver-specific `detail`.
-    fn update(&mut self, load: f64, reaction: f64, detail: &str, total: f64) {
+    /// Shows the state at load `load` (a clamp displacement [mm], or the
+    /// programme fraction) with force `reaction` and a solver-specific
+    /// `detail`.
+    pub(crate) fn update(&mut self, load: f64, reaction: f64, detail: &str, total: f64) {
         match self {
-            Progress::Bar(bar) => {
+            Progress::Bar(bar, programme) => {
                 bar.set_position((load * 1000.0).round() as u64);
-                bar.set_message(format!("{load:.2} mm, F = {reaction:.3} N, {detail}"));
+                if *programme {
+                    bar.set_message(format!("{load:.3}, F = {reaction:.3} N, {detail}"));
+                } else {
+                    bar.set_message(format!("{load:.2} mm, F = {reaction:.3} N, {detail}"));
+                }
             }
-            Progress::Lines { next } => {
+            Progress::Lines { next, programme } => {
                 if load + 1e-9 >= *next {
-                    eprintln!("d = {load:7.3} mm, F = {reaction:10.4} N, {detail}");
+                    if *programme {
+                        eprintln!("λ = {load:5.3}, F = {reaction:10.4} N, {detail}");
+                    } else {
+                        eprintln!("d = {load:7.3} mm, F = {reaction:10.4} N, {detail}");
+                    }
                     *next = load + 0.1 * total;
                 }
             }
@@ -206,8 +234,8 @@ impl Progress {
         }
     }
 
-    fn finish(&self) {
-        if let Progress::Bar(bar) = self {
+    pub(crate) fn finish(&self) {
+        if let Progress::Bar(bar, _) = self {
             bar.finish();
         }
     }
@@ -358,6 +386,7 @@ impl<'a> OutputSink<'a> {
             self.pvd.push(PvdEntry {
                 time: load,
                 file: format!("vtu/{name}"),
+                part: 0,
             });
         }
         if load <= case.contour_displacement + self.tolerance {

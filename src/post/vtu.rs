@@ -107,6 +107,9 @@ pub struct PvdEntry {
     pub time: f64,
     /// The `.vtu` file, relative to the `.pvd` file.
     pub file: String,
+    /// The part: files of the same time with different parts are shown
+    /// together (a ply and its tools); 0 for a single body.
+    pub part: usize,
 }
 
 fn invalid(msg: String) -> io::Error {
@@ -412,8 +415,9 @@ pub fn write_pvd(path: &Path, entries: &[PvdEntry], comment: &[String]) -> io::R
     for e in entries {
         writeln!(
             out,
-            r#"    <DataSet timestep="{:?}" group="" part="0" file="{}"/>"#,
+            r#"    <DataSet timestep="{:?}" group="" part="{}" file="{}"/>"#,
             e.time,
+            e.part,
             xml_escape(&e.file)
         )?;
     }

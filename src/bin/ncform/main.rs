@@ -7,6 +7,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use ncform::case::OatCase;
+use ncform::case::forming::{FormingCase, is_forming};
+use ncform::cli::form::run_forming;
 use ncform::cli::run::{Progress, default_out_dir, run_case};
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
@@ -23,8 +25,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a case file (an off-axis tension test) with the quasi-static
-    /// solver; writes CSV, PNG, VTU/PVD and a JSON summary.
+    /// Run a case file (an off-axis tension test or a forming set-up) with
+    /// the quasi-static or the explicit solver; writes CSV, PNG, VTU/PVD
+    /// and a JSON summary.
     Run {
         /// The case file (TOML), e.g. cases/oat45.toml.
         case: PathBuf,
@@ -93,9 +96,78 @@ fn main() -> ExitCode {
     }
 }
 
+/// `ncform run` for a forming case.
+fn run_forming_case(
+    case: &std::path::Path,
+    out: Option<PathBuf>,
+    quiet: bool,
+) -> Result<ExitCode, String> {
+    let spec = FormingCase::load(case).map_err(|e| e.to_string())?;
+    let out = out.unwrap_or_else(|| default_out_dir(case));
+    let progress = if quiet {
+        Progress::Quiet
+    } else {
+        Progress::auto_programme()
+    };
+    let summary = run_forming(&spec, &out, progress)?;
+    let work = match &summary.explicit {
+        None => format!(
+            "{} steps, {} Newton iterations, {} augmentations",
+            summary.steps, summary.newton_iterations, summary.augmentations
+        ),
+        Some(e) => format!(
+            "explicit: {} increments, max KE/IE {:.2} %, energy balance {:.1e}",
+            e.increments,
+            100.0 * e.max_kinetic_ratio,
+            e.max_relative_balance_error
+        ),
+    };
+    let forces: Vec<String> = summary
+        .history
+        .last()
+        .map(|row| {
+            summary
+                .tools
+                .iter()
+                .zip(&row.tools)
+                .map(|(name, t)| format!("{name}: {:.4} N at {:.3} mm", t.force, t.displacement))
+                .collect()
+        })
+        .unwrap_or_default();
+    let forces = if forces.is_empty() {
+        String::new()
+    } else {
+        format!("; {}", forces.join(", "))
+    };
+    println!(
+        "{}: {work}, {:.2} s{forces}",
+        spec.title, summary.wall_seconds
+    );
+    println!("results in {}", out.display());
+    if summary.complete {
+        return Ok(ExitCode::SUCCESS);
+    }
+    if let ncform::solver::RunStatus::Incomplete {
+        load_reached,
+        load_attempted,
+        reason,
+    } = &summary.status
+    {
+        eprintln!(
+            "error: the solve failed in the step from programme fraction {load_reached} to {load_attempted}: {reason}; results up to {load_reached} are written and marked incomplete"
+        );
+    }
+    Ok(ExitCode::from(2))
+}
+
 fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.command {
         Command::Run { case, out, quiet } => {
+            let text = std::fs::read_to_string(&case)
+                .map_err(|e| format!("case file '{}': {e}", case.display()))?;
+            if is_forming(&text) {
+                return run_forming_case(&case, out, quiet);
+            }
             let spec = OatCase::load(&case).map_err(|e| e.to_string())?;
             let out = out.unwrap_or_else(|| default_out_dir(&case));
             let progress = if quiet {

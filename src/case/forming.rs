@@ -1,0 +1,1234 @@
+//! Forming set-ups from case files: plies (generated blanks or mesh files,
+//! each with its law, thickness, areal mass, fibre angle and bending
+//! stiffness), rigid tools (analytic shapes or triangle meshes, fixed,
+//! prescribed or floating, each with its friction), boundary conditions on
+//! node sets, gravity and dead loads, the load programme, the solver and
+//! the outputs. Only this layer knows what a ply or a punch is; it builds a
+//! [`Model`] of force terms and the Dirichlet conditions the solvers drive.
+//! Key-by-key documentation: `docs/cases.md`, "Forming cases".
+//!
+//! The load parameter of a forming case is the programme fraction
+//! `λ ∈ [0, 1]`: prescribed tools and boundaries reach their displacement
+//! at `λ = 1`, ramped loads their full value.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::explicit::{
+    DEFAULT_AREAL_MASS, ExplicitRaw, ExplicitSettings, KG_PER_M2_IN_T_PER_MM2, SolverChoice,
+    SolverKind,
+};
+use crate::config::{ConfigError, TomlChecker, parse_toml};
+use crate::material::MaterialSpec;
+use crate::model::LoadAmplitude;
+use crate::solver::NewtonParameters;
+
+/// Standard gravity [mm/s²].
+pub const STANDARD_GRAVITY: f64 = 9810.0;
+/// `1 kg = 1e-3 t`.
+pub const KG_IN_T: f64 = 1.0e-3;
+/// Default number of VTU states over the programme (besides `λ = 0`).
+pub const DEFAULT_STATES: usize = 10;
+/// Default number of history rows of an explicit run.
+pub const DEFAULT_HISTORY_ROWS: usize = 100;
+
+// --- the file as written --------------------------------------------------
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FormingRaw {
+    title: Option<String>,
+    ply: Vec<PlyRaw>,
+    #[serde(default)]
+    tool: Vec<ToolRaw>,
+    #[serde(default)]
+    boundary: Vec<BoundaryRaw>,
+    #[serde(default)]
+    load: Vec<LoadRaw>,
+    gravity: Option<GravityRaw>,
+    contact: Option<ContactRaw>,
+    output: Option<OutputRaw>,
+    solver: Option<Spanned<SolverChoice>>,
+    explicit: Option<ExplicitRaw>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlyRaw {
+    name: Option<String>,
+    params: Option<String>,
+    thickness: Option<Spanned<f64>>,
+    areal_mass: Option<Spanned<f64>>,
+    fibre_angle_deg: Option<Spanned<f64>>,
+    bending: Option<Spanned<BendingRaw>>,
+    mesh: PlyMeshRaw,
+}
+
+/// `bending = false` or a table of stiffnesses.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum BendingRaw {
+    Switch(bool),
+    Table(BendingTableRaw),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BendingTableRaw {
+    b11: Option<Spanned<f64>>,
+    b22: Option<Spanned<f64>>,
+    b66: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlyMeshRaw {
+    shape: Option<Spanned<String>>,
+    size: Option<Spanned<Vec<f64>>>,
+    centre: Option<Spanned<Vec<f64>>>,
+    element_size: Option<Spanned<f64>>,
+    cells: Option<Spanned<Vec<i64>>>,
+    radius: Option<Spanned<f64>>,
+    width: Option<Spanned<f64>>,
+    wrap_angle_deg: Option<Spanned<f64>>,
+    tail_length: Option<Spanned<f64>>,
+    file: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToolRaw {
+    name: Option<String>,
+    shape: Spanned<String>,
+    origin: Option<Spanned<Vec<f64>>>,
+    axis: Option<Spanned<Vec<f64>>>,
+    radius: Option<Spanned<f64>>,
+    major_radius: Option<Spanned<f64>>,
+    minor_radius: Option<Spanned<f64>>,
+    opening_radius: Option<Spanned<f64>>,
+    fillet_radius: Option<Spanned<f64>>,
+    side: Option<Spanned<String>>,
+    file: Option<Spanned<String>>,
+    scale: Option<Spanned<f64>>,
+    closed: Option<bool>,
+    extent: Option<Spanned<f64>>,
+    friction: Option<Spanned<f64>>,
+    motion: Option<Spanned<String>>,
+    direction: Option<Spanned<Vec<f64>>>,
+    displacement: Option<Spanned<f64>>,
+    mass: Option<Spanned<f64>>,
+    weight: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BoundaryRaw {
+    ply: Option<String>,
+    nodes: Spanned<String>,
+    fix: Option<Spanned<Vec<String>>>,
+    displacement: Option<Spanned<Vec<f64>>>,
+    rotation: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LoadRaw {
+    ply: Option<String>,
+    nodes: Spanned<String>,
+    force: Spanned<Vec<f64>>,
+    amplitude: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GravityRaw {
+    g: Option<Spanned<f64>>,
+    direction: Option<Spanned<Vec<f64>>>,
+    amplitude: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ContactRaw {
+    offset: Option<Spanned<f64>>,
+    penalty: Option<Spanned<f64>>,
+    penalty_scale: Option<Spanned<f64>>,
+    gap_tolerance: Option<Spanned<f64>>,
+    multiplier_tolerance: Option<Spanned<f64>>,
+    explicit_stiffness: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutputRaw {
+    states: Option<Spanned<i64>>,
+    history: Option<Spanned<i64>>,
+}
+
+// --- the validated case ----------------------------------------------------
+
+/// Where a ply's mesh comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlyMesh {
+    /// A flat rectangle `size` in x and y centred at `centre`, meshed so
+    /// that every triangle has an edge along the rovings.
+    Rectangle {
+        /// Extents along x and y [mm].
+        size: [f64; 2],
+        /// Centre [mm].
+        centre: Vector3<f64>,
+        /// Element size or cell counts.
+        resolution: crate::mesh::generate::GridResolution,
+    },
+    /// A flat circular membrane of radius `radius` centred at `centre`.
+    Disk {
+        /// Radius [mm].
+        radius: f64,
+        /// Centre [mm].
+        centre: Vector3<f64>,
+        /// Element size [mm].
+        element_size: f64,
+    },
+    /// A strip pre-wrapped over a cylinder along y through `centre`.
+    WrappedStrip {
+        /// Radius of the strip's mid-surface arc [mm].
+        radius: f64,
+        /// Wrap angle [deg].
+        wrap_angle_deg: f64,
+        /// Length of each straight tail [mm].
+        tail_length: f64,
+        /// Width of the strip [mm].
+        width: f64,
+        /// Element size [mm].
+        element_size: f64,
+        /// Centre of the cylinder's axis [mm].
+        centre: Vector3<f64>,
+    },
+    /// An Abaqus `.inp` or Gmsh `.msh` file.
+    File {
+        /// Path (relative paths from the case file's folder).
+        path: PathBuf,
+    },
+}
+
+/// One ply.
+#[derive(Debug, Clone)]
+pub struct PlySpec {
+    /// Name (messages, outputs, node-set references).
+    pub name: String,
+    /// The mesh.
+    pub mesh: PlyMesh,
+    /// The law.
+    pub material: MaterialSpec,
+    /// Thickness [mm].
+    pub thickness: f64,
+    /// Mass density [t/mm³] (`None`: a parameter file without areal mass,
+    /// quasi-static without gravity only).
+    pub density: Option<f64>,
+    /// Roving angle from the global x axis in the blank's plane [deg]
+    /// (rovings `(cos α, sin α, 0)`), for generated rectangles and mesh
+    /// files; a wrapped strip has its rovings along its length.
+    pub fibre_angle_deg: f64,
+    /// Bending stiffnesses `(B11, B22, B66)` [N·mm], `None` for a membrane
+    /// without bending.
+    pub bending: Option<[f64; 3]>,
+}
+
+/// A tool's surface.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ToolShape {
+    /// The plane through the origin normal to the axis (free side along it).
+    Plane,
+    /// A sphere of radius `radius` about the origin.
+    Sphere {
+        /// Radius [mm].
+        radius: f64,
+    },
+    /// An infinite cylinder of radius `radius` about the axis.
+    Cylinder {
+        /// Radius [mm].
+        radius: f64,
+    },
+    /// A torus about the axis.
+    Torus {
+        /// Radius of the centre circle [mm].
+        major_radius: f64,
+        /// Radius of the tube [mm].
+        minor_radius: f64,
+    },
+    /// A plate whose face (normal = axis, towards the ply) has a round
+    /// opening with a fillet (a die or a blankholder).
+    PlateWithHole {
+        /// Opening radius [mm].
+        opening_radius: f64,
+        /// Fillet radius [mm].
+        fillet_radius: f64,
+    },
+    /// A triangle mesh from an STL or OBJ file.
+    Mesh {
+        /// Path (relative paths from the case file's folder).
+        path: PathBuf,
+        /// Scale to mm.
+        scale: f64,
+        /// Require a closed, consistently oriented mesh.
+        closed: bool,
+    },
+}
+
+/// How a tool moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ToolMotion {
+    /// It does not move.
+    Fixed,
+    /// It translates by `displacement` [mm] along `direction` over the
+    /// programme.
+    Prescribed {
+        /// Unit direction.
+        direction: Vector3<f64>,
+        /// Displacement at `λ = 1` [mm].
+        displacement: f64,
+    },
+    /// It translates freely along `direction` with its mass under its
+    /// weight.
+    Floating {
+        /// Unit direction.
+        direction: Vector3<f64>,
+        /// Mass [t].
+        mass: f64,
+        /// Dead force along `direction` [N] (its weight's component).
+        weight: f64,
+    },
+}
+
+/// One rigid tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolSpec {
+    /// Name.
+    pub name: String,
+    /// Surface.
+    pub shape: ToolShape,
+    /// The surface's local origin [mm].
+    pub origin: Vector3<f64>,
+    /// The surface's local z axis (unit).
+    pub axis: Vector3<f64>,
+    /// `true` when the ply is inside a sphere, cylinder or torus.
+    pub inside: bool,
+    /// Coulomb friction coefficient.
+    pub friction: f64,
+    /// Motion.
+    pub motion: ToolMotion,
+    /// Half-size of the drawn surface (planes, plates) [mm].
+    pub extent: f64,
+}
+
+/// A Dirichlet condition on a node set of a ply.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundarySpec {
+    /// Ply index.
+    pub ply: usize,
+    /// Node set.
+    pub nodes: String,
+    /// Fixed components (x, y, z); a driven component is fixed too.
+    pub fixed: [bool; 3],
+    /// Displacement at `λ = 1` of the fixed components [mm].
+    pub displacement: [f64; 3],
+    /// Fix the rotation of bending about edges on this set (a clamp).
+    pub clamp_rotation: bool,
+    /// Line of the condition in the case file (messages).
+    pub line: usize,
+}
+
+/// A dead force on a node set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadSpec {
+    /// Ply index.
+    pub ply: usize,
+    /// Node set.
+    pub nodes: String,
+    /// Total force [N], shared equally by the set's nodes.
+    pub force: Vector3<f64>,
+    /// Amplitude.
+    pub amplitude: LoadAmplitude,
+    /// Line in the case file.
+    pub line: usize,
+}
+
+/// Gravity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GravitySpec {
+    /// Acceleration vector [mm/s²].
+    pub acceleration: Vector3<f64>,
+    /// Amplitude.
+    pub amplitude: LoadAmplitude,
+}
+
+/// Contact settings shared by every tool.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ContactSettings {
+    /// Distance of the contact surface from the ply's mid-surface [mm];
+    /// `None`: half of each ply's thickness.
+    pub offset: Option<f64>,
+    /// Normal and tangential penalty of the augmented Lagrangian [N/mm];
+    /// `None`: automatic (`docs/contact.md`).
+    pub penalty: Option<f64>,
+    /// Factor on the automatic penalty.
+    pub penalty_scale: f64,
+    /// Largest accepted penetration [mm]; `None`: 1 % of the offset.
+    pub gap_tolerance: Option<f64>,
+    /// Largest accepted relative change of the multipliers per
+    /// augmentation.
+    pub multiplier_tolerance: f64,
+    /// Explicit penalty as a fraction of the central-difference limit
+    /// `4m/Δt²` of each node.
+    pub explicit_stiffness: f64,
+}
+
+impl Default for ContactSettings {
+    fn default() -> Self {
+        Self {
+            offset: None,
+            penalty: None,
+            penalty_scale: 1.0,
+            gap_tolerance: None,
+            multiplier_tolerance: 1e-3,
+            explicit_stiffness: 0.1,
+        }
+    }
+}
+
+/// A validated forming case.
+#[derive(Debug, Clone)]
+pub struct FormingCase {
+    /// Title.
+    pub title: String,
+    /// The case file (or the name given).
+    pub source: String,
+    /// The plies.
+    pub plies: Vec<PlySpec>,
+    /// The tools.
+    pub tools: Vec<ToolSpec>,
+    /// Boundary conditions.
+    pub boundaries: Vec<BoundarySpec>,
+    /// Dead loads.
+    pub loads: Vec<LoadSpec>,
+    /// Gravity, if on.
+    pub gravity: Option<GravitySpec>,
+    /// Contact settings.
+    pub contact: ContactSettings,
+    /// Which solver.
+    pub solver_kind: SolverKind,
+    /// Newton knobs.
+    pub solver: NewtonParameters,
+    /// Explicit settings.
+    pub explicit: ExplicitSettings,
+    /// Programme fractions with VTU output (the last is 1).
+    pub states: Vec<f64>,
+    /// History rows of an explicit run.
+    pub history_rows: usize,
+    /// Largest prescribed displacement [mm] (the stroke), if anything moves.
+    pub stroke: Option<f64>,
+}
+
+/// `true` when a case text describes a forming set-up (it has plies).
+pub fn is_forming(text: &str) -> bool {
+    toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("ply"))
+}
+
+/// A 3-vector key.
+fn vector3(
+    check: &TomlChecker,
+    v: &Spanned<Vec<f64>>,
+    key: &str,
+    unit: bool,
+) -> Result<Vector3<f64>, ConfigError> {
+    let values = v.get_ref();
+    let shown = format!(
+        "[{}]",
+        values
+            .iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    if values.len() != 3 || values.iter().any(|x| !x.is_finite()) {
+        return Err(check.invalid(
+            check.line_of(v),
+            key,
+            shown,
+            "three finite numbers [x, y, z]",
+        ));
+    }
+    let x = Vector3::new(values[0], values[1], values[2]);
+    if unit {
+        let n = x.norm();
+        if !(n > 1e-12) {
+            return Err(check.invalid(check.line_of(v), key, shown, "a non-zero direction"));
+        }
+        return Ok(x / n);
+    }
+    Ok(x)
+}
+
+fn amplitude(
+    check: &TomlChecker,
+    v: &Option<Spanned<String>>,
+    key: &str,
+    default: LoadAmplitude,
+) -> Result<LoadAmplitude, ConfigError> {
+    match v {
+        None => Ok(default),
+        Some(a) => check.choice(
+            a,
+            key,
+            &[
+                ("constant", LoadAmplitude::Constant),
+                ("ramp", LoadAmplitude::Ramp),
+            ],
+        ),
+    }
+}
+
+impl FormingCase {
+    /// Parses and validates a forming case; relative paths are resolved
+    /// against `base_dir`.
+    ///
+    /// # Errors
+    /// Unknown or missing keys, values out of range, unknown ply names or
+    /// node-set references — each naming the file, line, key and value.
+    pub fn from_toml_str(text: &str, source: &str, base_dir: &Path) -> Result<Self, ConfigError> {
+        let raw: FormingRaw = parse_toml(text, source)?;
+        let check = TomlChecker { text, source };
+        let positive =
+            |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+
+        if raw.ply.is_empty() {
+            return Err(check.missing("[[ply]]", "at least one ply"));
+        }
+        let mut plies = Vec::new();
+        for (i, p) in raw.ply.iter().enumerate() {
+            let key = |k: &str| format!("ply[{i}].{k}");
+            let name = p.name.clone().unwrap_or_else(|| {
+                if raw.ply.len() == 1 {
+                    "ply".to_string()
+                } else {
+                    format!("ply{}", i + 1)
+                }
+            });
+            if plies.iter().any(|q: &PlySpec| q.name == name) {
+                return Err(check.invalid(
+                    0,
+                    &key("name"),
+                    format!("\"{name}\""),
+                    "a name no other ply has",
+                ));
+            }
+            let (material, named_set) = match &p.params {
+                None => (MaterialSpec::default_set(), true),
+                Some(name) if MaterialSpec::named_text(name).is_some() => {
+                    (MaterialSpec::load(name)?, true)
+                }
+                Some(file) => (
+                    MaterialSpec::load(&base_dir.join(file).display().to_string()).map_err(
+                        |e| match e {
+                            ConfigError::NotFound { requested, reason } => ConfigError::NotFound {
+                                requested: format!(
+                                    "{source}: {} = \"{file}\" ({requested})",
+                                    key("params")
+                                ),
+                                reason,
+                            },
+                            other => other,
+                        },
+                    )?,
+                    false,
+                ),
+            };
+            let thickness = match &p.thickness {
+                None => super::oat::DEFAULT_THICKNESS,
+                Some(t) => positive(t, &key("thickness"), "a thickness > 0 mm")?,
+            };
+            let density = match &p.areal_mass {
+                Some(a) => Some(
+                    positive(a, &key("areal_mass"), "an areal mass > 0 kg/m²")?
+                        * KG_PER_M2_IN_T_PER_MM2
+                        / thickness,
+                ),
+                None if named_set => Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness),
+                None => None,
+            };
+            let fibre_angle_deg = match &p.fibre_angle_deg {
+                None => 0.0,
+                Some(a) => check.range(
+                    a,
+                    &key("fibre_angle_deg"),
+                    |x| (-360.0..=360.0).contains(&x),
+                    "an angle in [-360, 360] degrees",
+                )?,
+            };
+            let bending = match &p.bending {
+                None => Some(PAPER_BENDING),
+                Some(b) => match b.get_ref() {
+                    BendingRaw::Switch(false) => None,
+                    BendingRaw::Switch(true) => Some(PAPER_BENDING),
+                    BendingRaw::Table(t) => {
+                        let value = |v: &Option<Spanned<f64>>, k: &str, default: f64| match v {
+                            None => Ok(default),
+                            Some(v) => check.range(
+                                v,
+                                &key(&format!("bending.{k}")),
+                                |x| x >= 0.0,
+                                "a bending stiffness ≥ 0 N·mm",
+                            ),
+                        };
+                        Some([
+                            value(&t.b11, "b11", PAPER_BENDING[0])?,
+                            value(&t.b22, "b22", PAPER_BENDING[1])?,
+                            value(&t.b66, "b66", PAPER_BENDING[2])?,
+                        ])
+                    }
+                },
+            };
+            let mesh = ply_mesh(&check, &p.mesh, i, base_dir)?;
+            plies.push(PlySpec {
+                name,
+                mesh,
+                material,
+                thickness,
+                density,
+                fibre_angle_deg,
+                bending,
+            });
+        }
+        let ply_index = |name: &Option<String>, key: &str| -> Result<usize, ConfigError> {
+            match name {
+                None if plies.len() == 1 => Ok(0),
+                None => Err(check.missing(key, "the ply's name (the case has several plies)")),
+                Some(n) => plies.iter().position(|p| &p.name == n).ok_or_else(|| {
+                    check.invalid(
+                        0,
+                        key,
+                        format!("\"{n}\""),
+                        &format!(
+                            "one of the plies: {}",
+                            plies
+                                .iter()
+                                .map(|p| format!("\"{}\"", p.name))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    )
+                }),
+            }
+        };
+
+        let gravity = match &raw.gravity {
+            None => None,
+            Some(g) => {
+                let magnitude = match &g.g {
+                    None => STANDARD_GRAVITY,
+                    Some(v) => check.range(
+                        v,
+                        "gravity.g",
+                        |x| x >= 0.0,
+                        "an acceleration ≥ 0 mm/s² (9810 on Earth)",
+                    )?,
+                };
+                let direction = match &g.direction {
+                    None => -Vector3::z(),
+                    Some(d) => vector3(&check, d, "gravity.direction", true)?,
+                };
+                Some(GravitySpec {
+                    acceleration: magnitude * direction,
+                    amplitude: amplitude(
+                        &check,
+                        &g.amplitude,
+                        "gravity.amplitude",
+                        LoadAmplitude::Constant,
+                    )?,
+                })
+            }
+        };
+        if gravity.is_some() {
+            if let Some(p) = plies.iter().find(|p| p.density.is_none()) {
+                return Err(check.missing(
+                    &format!("ply \"{}\": areal_mass", p.name),
+                    "the ply's areal mass [kg/m²] for gravity (a parameter file has none)",
+                ));
+            }
+        }
+
+        let mut tools = Vec::new();
+        for (i, t) in raw.tool.iter().enumerate() {
+            let tool = tool_spec(&check, t, i, base_dir, gravity.as_ref())?;
+            if tools.iter().any(|q: &ToolSpec| q.name == tool.name) {
+                return Err(check.invalid(
+                    0,
+                    &format!("tool[{i}].name"),
+                    format!("\"{}\"", tool.name),
+                    "a name no other tool has",
+                ));
+            }
+            tools.push(tool);
+        }
+
+        let mut boundaries = Vec::new();
+        for (i, b) in raw.boundary.iter().enumerate() {
+            let key = |k: &str| format!("boundary[{i}].{k}");
+            let ply = ply_index(&b.ply, &key("ply"))?;
+            let mut fixed = [false; 3];
+            if let Some(list) = &b.fix {
+                for c in list.get_ref() {
+                    let k = match c.as_str() {
+                        "x" => 0,
+                        "y" => 1,
+                        "z" => 2,
+                        other => {
+                            return Err(check.invalid(
+                                check.line_of(list),
+                                &key("fix"),
+                                format!("\"{other}\""),
+                                "components among \"x\", \"y\", \"z\"",
+                            ));
+                        }
+                    };
+                    fixed[k] = true;
+                }
+            }
+            let displacement = match &b.displacement {
+                None => [0.0; 3],
+                Some(d) => {
+                    let v = vector3(&check, d, &key("displacement"), false)?;
+                    for k in 0..3 {
+                        if v[k] != 0.0 {
+                            fixed[k] = true;
+                        }
+                    }
+                    [v.x, v.y, v.z]
+                }
+            };
+            let clamp_rotation = match &b.rotation {
+                None => false,
+                Some(r) => {
+                    check.choice(r, &key("rotation"), &[("clamped", true), ("free", false)])?
+                }
+            };
+            if !fixed.iter().any(|f| *f) && !clamp_rotation {
+                return Err(check.invalid(
+                    check.line_of(&b.nodes),
+                    &key("fix"),
+                    "(none)".into(),
+                    "at least one fixed component or rotation = \"clamped\"",
+                ));
+            }
+            boundaries.push(BoundarySpec {
+                ply,
+                nodes: b.nodes.get_ref().clone(),
+                fixed,
+                displacement,
+                clamp_rotation,
+                line: check.line_of(&b.nodes),
+            });
+        }
+
+        let mut loads = Vec::new();
+        for (i, l) in raw.load.iter().enumerate() {
+            let key = |k: &str| format!("load[{i}].{k}");
+            loads.push(LoadSpec {
+                ply: ply_index(&l.ply, &key("ply"))?,
+                nodes: l.nodes.get_ref().clone(),
+                force: vector3(&check, &l.force, &key("force"), false)?,
+                amplitude: amplitude(&check, &l.amplitude, &key("amplitude"), LoadAmplitude::Ramp)?,
+                line: check.line_of(&l.nodes),
+            });
+        }
+
+        let mut contact = ContactSettings::default();
+        if let Some(c) = &raw.contact {
+            if let Some(v) = &c.offset {
+                contact.offset =
+                    Some(check.range(v, "contact.offset", |x| x >= 0.0, "a distance ≥ 0 mm")?);
+            }
+            if let Some(v) = &c.penalty {
+                contact.penalty = Some(positive(v, "contact.penalty", "a stiffness > 0 N/mm")?);
+            }
+            if let Some(v) = &c.penalty_scale {
+                contact.penalty_scale = positive(v, "contact.penalty_scale", "a factor > 0")?;
+            }
+            if let Some(v) = &c.gap_tolerance {
+                contact.gap_tolerance =
+                    Some(positive(v, "contact.gap_tolerance", "a distance > 0 mm")?);
+            }
+            if let Some(v) = &c.multiplier_tolerance {
+                contact.multiplier_tolerance =
+                    positive(v, "contact.multiplier_tolerance", "a fraction > 0")?;
+            }
+            if let Some(v) = &c.explicit_stiffness {
+                contact.explicit_stiffness = check.range(
+                    v,
+                    "contact.explicit_stiffness",
+                    |x| x > 0.0 && x <= 1.0,
+                    "a fraction in (0, 1] of the stability limit",
+                )?;
+            }
+        }
+
+        let stroke = tools
+            .iter()
+            .filter_map(|t| match t.motion {
+                ToolMotion::Prescribed { displacement, .. } => Some(displacement.abs()),
+                _ => None,
+            })
+            .chain(
+                boundaries
+                    .iter()
+                    .map(|b| Vector3::from(b.displacement).norm()),
+            )
+            .filter(|d| *d > 0.0)
+            .reduce(f64::max);
+
+        let (solver_kind, solver) = super::oat::solver_choice(raw.solver, &check)?;
+        super::oat::validate_solver(&solver, source)?;
+        if stroke.is_none()
+            && solver_kind == SolverKind::Explicit
+            && raw.explicit.as_ref().is_none_or(|e| e.duration.is_none())
+        {
+            return Err(check.missing(
+                "explicit.duration",
+                "the duration of the run [s] (no tool or boundary moves, so no speed sets it)",
+            ));
+        }
+        let explicit =
+            ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, stroke.unwrap_or(1.0))?;
+        if solver_kind == SolverKind::Explicit {
+            if let Some(p) = plies.iter().find(|p| p.density.is_none()) {
+                return Err(check.missing(
+                    &format!("ply \"{}\": areal_mass", p.name),
+                    "the ply's areal mass [kg/m²] for the explicit solver (a parameter file has none)",
+                ));
+            }
+        }
+        let (states, history_rows) = match &raw.output {
+            None => (DEFAULT_STATES, DEFAULT_HISTORY_ROWS),
+            Some(o) => (
+                match &o.states {
+                    None => DEFAULT_STATES,
+                    Some(n) => check.count(n, "output.states", 1..=10_000)?,
+                },
+                match &o.history {
+                    None => DEFAULT_HISTORY_ROWS,
+                    Some(n) => check.count(n, "output.history", 1..=1_000_000)?,
+                },
+            ),
+        };
+        Ok(Self {
+            title: raw.title.unwrap_or_else(|| "forming".to_string()),
+            source: source.to_string(),
+            plies,
+            tools,
+            boundaries,
+            loads,
+            gravity,
+            contact,
+            solver_kind,
+            solver,
+            explicit,
+            states: (1..=states).map(|k| k as f64 / states as f64).collect(),
+            history_rows,
+            stroke,
+        })
+    }
+
+    /// Reads and validates a forming case file.
+    ///
+    /// # Errors
+    /// As [`FormingCase::from_toml_str`], or an unreadable file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::NotFound {
+            requested: format!("case file '{}'", path.display()),
+            reason: e.to_string(),
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_toml_str(&text, &path.display().to_string(), base)
+    }
+}
+
+/// The paper's bending stiffnesses `(B11, B22)` [N·mm] (Section 3) and the
+/// default twist stiffness `B66 = B22` (not in the paper; `docs/theory.md`).
+pub const PAPER_BENDING: [f64; 3] = [4.06, 0.018, 0.018];
+
+fn ply_mesh(
+    check: &TomlChecker,
+    m: &PlyMeshRaw,
+    i: usize,
+    base_dir: &Path,
+) -> Result<PlyMesh, ConfigError> {
+    let key = |k: &str| format!("ply[{i}].mesh.{k}");
+    let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
+        None => Err(check.missing(&key(k), what)),
+        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+    };
+    let centre = match &m.centre {
+        None => Vector3::zeros(),
+        Some(c) => vector3(check, c, &key("centre"), false)?,
+    };
+    if let Some(file) = &m.file {
+        if m.shape.is_some() {
+            return Err(check.invalid(
+                check.line_of(file),
+                &key("shape"),
+                "(given)".into(),
+                "no shape with a mesh file",
+            ));
+        }
+        return Ok(PlyMesh::File {
+            path: base_dir.join(file.get_ref()),
+        });
+    }
+    let Some(shape) = &m.shape else {
+        return Err(check.missing(
+            &key("shape"),
+            "\"rectangle\", \"disk\" or \"wrapped-strip\" (or a mesh file)",
+        ));
+    };
+    #[derive(Clone, Copy)]
+    enum Kind {
+        Rectangle,
+        Disk,
+        Strip,
+    }
+    let kind = check.choice(
+        shape,
+        &key("shape"),
+        &[
+            ("rectangle", Kind::Rectangle),
+            ("disk", Kind::Disk),
+            ("wrapped-strip", Kind::Strip),
+        ],
+    )?;
+    Ok(match kind {
+        Kind::Rectangle => {
+            let size = match &m.size {
+                None => return Err(check.missing(&key("size"), "the blank's extents [x, y] in mm")),
+                Some(s) => {
+                    let v = s.get_ref();
+                    if v.len() != 2 || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                        return Err(check.invalid(
+                            check.line_of(s),
+                            &key("size"),
+                            format!("{v:?}"),
+                            "two lengths > 0 mm [x, y]",
+                        ));
+                    }
+                    [v[0], v[1]]
+                }
+            };
+            let resolution = match (&m.element_size, &m.cells) {
+                (Some(h), None) => crate::mesh::generate::GridResolution::ElementSize(
+                    check.range(h, &key("element_size"), |x| x > 0.0, "a length > 0 mm")?,
+                ),
+                (None, Some(c)) => {
+                    let v = c.get_ref();
+                    if v.len() != 2 || v.iter().any(|n| !(1..=100_000).contains(n)) {
+                        return Err(check.invalid(
+                            check.line_of(c),
+                            &key("cells"),
+                            format!("{v:?}"),
+                            "two counts in 1..=100000 [nx, ny]",
+                        ));
+                    }
+                    crate::mesh::generate::GridResolution::Counts {
+                        nx: v[0] as usize,
+                        ny: v[1] as usize,
+                    }
+                }
+                _ => {
+                    return Err(check.missing(
+                        &key("element_size"),
+                        "exactly one of element_size and cells",
+                    ));
+                }
+            };
+            PlyMesh::Rectangle {
+                size,
+                centre,
+                resolution,
+            }
+        }
+        Kind::Disk => PlyMesh::Disk {
+            radius: positive(&m.radius, "radius", "a radius > 0 mm")?,
+            centre,
+            element_size: positive(&m.element_size, "element_size", "a length > 0 mm")?,
+        },
+        Kind::Strip => PlyMesh::WrappedStrip {
+            radius: positive(
+                &m.radius,
+                "radius",
+                "the radius of the strip's mid-surface > 0 mm",
+            )?,
+            wrap_angle_deg: match &m.wrap_angle_deg {
+                None => {
+                    return Err(
+                        check.missing(&key("wrap_angle_deg"), "the wrap angle in (0, 360) degrees")
+                    );
+                }
+                Some(a) => check.range(
+                    a,
+                    &key("wrap_angle_deg"),
+                    |x| x > 0.0 && x < 360.0,
+                    "an angle in (0, 360) degrees",
+                )?,
+            },
+            tail_length: match &m.tail_length {
+                None => 0.0,
+                Some(t) => check.range(t, &key("tail_length"), |x| x >= 0.0, "a length ≥ 0 mm")?,
+            },
+            width: positive(&m.width, "width", "a width > 0 mm")?,
+            element_size: positive(&m.element_size, "element_size", "a length > 0 mm")?,
+            centre,
+        },
+    })
+}
+
+fn tool_spec(
+    check: &TomlChecker,
+    t: &ToolRaw,
+    i: usize,
+    base_dir: &Path,
+    gravity: Option<&GravitySpec>,
+) -> Result<ToolSpec, ConfigError> {
+    let key = |k: &str| format!("tool[{i}].{k}");
+    let name = t.name.clone().unwrap_or_else(|| format!("tool{}", i + 1));
+    let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
+        None => Err(check.missing(&key(k), what)),
+        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+    };
+    #[derive(Clone, Copy)]
+    enum Kind {
+        Plane,
+        Sphere,
+        Cylinder,
+        Torus,
+        Plate,
+        Mesh,
+    }
+    let kind = check.choice(
+        &t.shape,
+        &key("shape"),
+        &[
+            ("plane", Kind::Plane),
+            ("sphere", Kind::Sphere),
+            ("cylinder", Kind::Cylinder),
+            ("torus", Kind::Torus),
+            ("plate-with-hole", Kind::Plate),
+            ("mesh", Kind::Mesh),
+        ],
+    )?;
+    let shape = match kind {
+        Kind::Plane => ToolShape::Plane,
+        Kind::Sphere => ToolShape::Sphere {
+            radius: positive(&t.radius, "radius", "a radius > 0 mm")?,
+        },
+        Kind::Cylinder => ToolShape::Cylinder {
+            radius: positive(&t.radius, "radius", "a radius > 0 mm")?,
+        },
+        Kind::Torus => ToolShape::Torus {
+            major_radius: positive(&t.major_radius, "major_radius", "a radius > 0 mm")?,
+            minor_radius: positive(&t.minor_radius, "minor_radius", "a radius > 0 mm")?,
+        },
+        Kind::Plate => ToolShape::PlateWithHole {
+            opening_radius: positive(&t.opening_radius, "opening_radius", "a radius > 0 mm")?,
+            fillet_radius: positive(&t.fillet_radius, "fillet_radius", "a radius > 0 mm")?,
+        },
+        Kind::Mesh => ToolShape::Mesh {
+            path: match &t.file {
+                None => return Err(check.missing(&key("file"), "an STL or OBJ file")),
+                Some(f) => base_dir.join(f.get_ref()),
+            },
+            scale: match &t.scale {
+                None => 1.0,
+                Some(s) => check.range(s, &key("scale"), |x| x > 0.0, "a factor > 0 to mm")?,
+            },
+            closed: t.closed.unwrap_or(true),
+        },
+    };
+    let geometry_keys: [(&str, bool); 7] = [
+        ("radius", t.radius.is_some()),
+        ("major_radius", t.major_radius.is_some()),
+        ("minor_radius", t.minor_radius.is_some()),
+        ("opening_radius", t.opening_radius.is_some()),
+        ("fillet_radius", t.fillet_radius.is_some()),
+        ("file", t.file.is_some()),
+        ("scale", t.scale.is_some()),
+    ];
+    let needed: &[&str] = match kind {
+        Kind::Plane => &[],
+        Kind::Sphere | Kind::Cylinder => &["radius"],
+        Kind::Torus => &["major_radius", "minor_radius"],
+        Kind::Plate => &["opening_radius", "fillet_radius"],
+        Kind::Mesh => &["file", "scale"],
+    };
+    if let Some((extra, _)) = geometry_keys
+        .iter()
+        .find(|(k, given)| *given && !needed.contains(k))
+    {
+        return Err(check.invalid(
+            check.line_of(&t.shape),
+            &key(extra),
+            "(given)".into(),
+            &format!("no {extra} for shape \"{}\"", t.shape.get_ref()),
+        ));
+    }
+    let inside = match &t.side {
+        None => false,
+        Some(s) => {
+            if !matches!(kind, Kind::Sphere | Kind::Cylinder | Kind::Torus) {
+                return Err(check.invalid(
+                    check.line_of(s),
+                    &key("side"),
+                    format!("\"{}\"", s.get_ref()),
+                    "no side for this shape (only spheres, cylinders and tori)",
+                ));
+            }
+            check.choice(s, &key("side"), &[("outside", false), ("inside", true)])?
+        }
+    };
+    let origin = match &t.origin {
+        None => Vector3::zeros(),
+        Some(o) => vector3(check, o, &key("origin"), false)?,
+    };
+    let axis = match &t.axis {
+        None => Vector3::z(),
+        Some(a) => vector3(check, a, &key("axis"), true)?,
+    };
+    let friction = match &t.friction {
+        None => 0.0,
+        Some(f) => check.range(
+            f,
+            &key("friction"),
+            |x| x >= 0.0,
+            "a friction coefficient ≥ 0",
+        )?,
+    };
+    let extent = match &t.extent {
+        None => 200.0,
+        Some(e) => check.range(e, &key("extent"), |x| x > 0.0, "a half-size > 0 mm")?,
+    };
+    #[derive(Clone, Copy)]
+    enum Move {
+        Fixed,
+        Prescribed,
+        Floating,
+    }
+    let motion_kind = match &t.motion {
+        None => Move::Fixed,
+        Some(m) => check.choice(
+            m,
+            &key("motion"),
+            &[
+                ("fixed", Move::Fixed),
+                ("prescribed", Move::Prescribed),
+                ("floating", Move::Floating),
+            ],
+        )?,
+    };
+    let direction = || match &t.direction {
+        None => Err(check.missing(
+            &key("direction"),
+            "the unit direction [x, y, z] the tool moves along",
+        )),
+        Some(d) => vector3(check, d, &key("direction"), true),
+    };
+    let unused = |v: &Option<Spanned<f64>>, k: &str, why: &str| match v {
+        Some(v) => Err(check.invalid(check.line_of(v), &key(k), format!("{}", v.get_ref()), why)),
+        None => Ok(()),
+    };
+    let motion = match motion_kind {
+        Move::Fixed => {
+            unused(
+                &t.displacement,
+                "displacement",
+                "no displacement for a fixed tool (motion = \"prescribed\")",
+            )?;
+            unused(
+                &t.mass,
+                "mass",
+                "no mass for a fixed tool (motion = \"floating\")",
+            )?;
+            unused(
+                &t.weight,
+                "weight",
+                "no weight for a fixed tool (motion = \"floating\")",
+            )?;
+            ToolMotion::Fixed
+        }
+        Move::Prescribed => {
+            unused(&t.mass, "mass", "no mass for a prescribed tool")?;
+            unused(&t.weight, "weight", "no weight for a prescribed tool")?;
+            let displacement = match &t.displacement {
+                None => {
+                    return Err(check.missing(
+                        &key("displacement"),
+                        "the tool's displacement at the end of the programme [mm]",
+                    ));
+                }
+                Some(d) => check.range(
+                    d,
+                    &key("displacement"),
+                    |_| true,
+                    "a finite displacement [mm]",
+                )?,
+            };
+            ToolMotion::Prescribed {
+                direction: direction()?,
+                displacement,
+            }
+        }
+        Move::Floating => {
+            unused(
+                &t.displacement,
+                "displacement",
+                "no displacement for a floating tool (it moves under its weight)",
+            )?;
+            let direction = direction()?;
+            let mass = match &t.mass {
+                None => {
+                    return Err(check.missing(
+                        &key("mass"),
+                        "the floating tool's mass [kg] (a floating tool needs a mass and a weight)",
+                    ));
+                }
+                Some(m) => check.range(m, &key("mass"), |x| x > 0.0, "a mass > 0 kg")? * KG_IN_T,
+            };
+            let weight = match &t.weight {
+                Some(w) => check.range(
+                    w,
+                    &key("weight"),
+                    |x| x >= 0.0,
+                    "a dead force ≥ 0 N along the tool's direction",
+                )?,
+                None => {
+                    let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
+                    mass * g.dot(&direction)
+                }
+            };
+            ToolMotion::Floating {
+                direction,
+                mass,
+                weight,
+            }
+        }
+    };
+    Ok(ToolSpec {
+        name,
+        shape,
+        origin,
+        axis,
+        inside,
+        friction,
+        motion,
+        extent,
+    })
+}

@@ -1,0 +1,862 @@
+//! `ncform run CASE` for a forming case: builds the plies, tools and loads,
+//! runs the quasi-static or the explicit solver over the load programme
+//! and writes what a user looks at (`docs/cases.md`, "Forming outputs"):
+//!
+//! - `history.csv` / `reactions.png`: every tool's displacement and force,
+//!   every boundary's reaction, per converged step (quasi-static) or
+//!   history row (explicit), with the contact figures of each step;
+//! - `vtu/*.vtu` and `forming.pvd`: every ply with its strain, invariant,
+//!   stress, curvature and contact fields, and every tool, at the output
+//!   states, for ParaView;
+//! - `energy.csv` / `energy.png` (explicit): internal, contact, kinetic,
+//!   external work (motions and loads), damping, friction, balance;
+//! - `summary.json`: status, forces at the outputs, contact and energy
+//!   figures, work done, time split.
+//!
+//! A solve that fails keeps everything up to the last converged step (or
+//! output) and marks it incomplete.
+
+use std::path::Path;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::run::Progress;
+use crate::case::SolverKind;
+use crate::case::forming::{FormingCase, ToolMotion};
+use crate::case::forming_model::FormingModel;
+use crate::post::csv::write_csv;
+use crate::post::fields::element_fields;
+use crate::post::plot::{Panel, Series, write_panels};
+use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
+use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
+use crate::solver::newton::solve_quasi_static;
+use crate::solver::{
+    DofMap, ExplicitRecord, ExplicitState, RunStatus, Snapshot, SolverTimings, solve_explicit,
+};
+
+const UNITS: &str = "mm, N, MPa, tonne/mm^3, s; angles in degrees";
+
+/// One tool's state in a history row.
+#[derive(Debug, Clone, Serialize)]
+pub struct ToolRow {
+    /// Displacement along its direction [mm].
+    pub displacement: f64,
+    /// Force of the plies on it along its direction, the force that
+    /// drives or holds it (positive when the plies resist its motion) [N].
+    pub force: f64,
+}
+
+/// One row of the history.
+#[derive(Debug, Clone, Serialize)]
+pub struct FormingRow {
+    /// Programme fraction `λ`.
+    pub load: f64,
+    /// Time [s] (explicit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
+    /// Per tool.
+    pub tools: Vec<ToolRow>,
+    /// Per boundary condition: the total reaction force [N].
+    pub reactions: Vec<[f64; 3]>,
+    /// Newton iterations of the step (quasi-static).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// Newton solves beyond the first (contact augmentations).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub augmentations: Option<usize>,
+    /// Largest penetration after the step's last augmentation [mm].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_penetration: Option<f64>,
+    /// Relative change of the contact multipliers in the last augmentation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub multiplier_change: Option<f64>,
+    /// Closed contacts (node–tool pairs), of which slipping.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<(usize, usize)>,
+    /// Final residual norm of the step [N] (quasi-static).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual: Option<f64>,
+    /// Time increments so far (explicit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub increments: Option<usize>,
+}
+
+/// The JSON summary of a forming run.
+#[derive(Debug, Clone, Serialize)]
+pub struct FormingSummary {
+    /// Case file.
+    pub case: String,
+    /// Title.
+    pub title: String,
+    /// `true` when the programme's end was reached.
+    pub complete: bool,
+    /// Completion (reason when incomplete).
+    pub status: RunStatus,
+    /// The solver.
+    pub solver: SolverKind,
+    /// Units of every number here.
+    pub units: &'static str,
+    /// Plies: name, nodes, triangles.
+    pub plies: Vec<PlySummary>,
+    /// Tools: name and how they move.
+    pub tools: Vec<String>,
+    /// Free unknowns.
+    pub unknowns: usize,
+    /// Tangent non-zeros (quasi-static).
+    pub nonzeros: usize,
+    /// Converged steps (quasi-static) or history rows (explicit).
+    pub steps: usize,
+    /// Newton iterations (all attempts).
+    pub newton_iterations: usize,
+    /// Newton solves beyond the first per step, summed (augmentations).
+    pub augmentations: usize,
+    /// The explicit run's figures.
+    pub explicit: Option<ExplicitFigures>,
+    /// Time split of the solve [s].
+    pub timings: Timings,
+    /// Time writing outputs [s].
+    pub output_seconds: f64,
+    /// Wall time of the whole run [s].
+    pub wall_seconds: f64,
+    /// The history.
+    pub history: Vec<FormingRow>,
+}
+
+/// A ply's size.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlySummary {
+    /// Name.
+    pub name: String,
+    /// Nodes.
+    pub nodes: usize,
+    /// Triangles.
+    pub triangles: usize,
+}
+
+/// Either solver's time split [s].
+#[derive(Debug, Clone, Copy, Serialize)]
+#[serde(untagged)]
+pub enum Timings {
+    /// Newton.
+    QuasiStatic(SolverTimings),
+    /// Explicit.
+    Explicit(ExplicitTimings),
+}
+
+/// What an explicit forming run reports besides the history.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExplicitFigures {
+    /// Time increments.
+    pub increments: usize,
+    /// Duration [s].
+    pub duration: f64,
+    /// Estimated critical step at the start [s].
+    pub initial_critical_time_step: f64,
+    /// Smallest and largest step taken [s].
+    pub time_step_range: (f64, f64),
+    /// Masses.
+    pub mass: MassSummary,
+    /// Largest KE/IE from 10 % of the programme on.
+    pub max_kinetic_ratio: f64,
+    /// Largest relative energy-balance error.
+    pub max_relative_balance_error: f64,
+    /// Energies at the last output [N·mm].
+    pub final_energies: Option<Energies>,
+    /// Element cycles per second over the passes.
+    pub element_cycles_per_second: f64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Warnings.
+    pub warnings: Vec<String>,
+}
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
+    format!("{}: {e}", path.display())
+}
+
+/// What the output callbacks feed.
+struct Sink<'a> {
+    case: &'a FormingCase,
+    built: &'a FormingModel,
+    out: &'a Path,
+    history: Vec<FormingRow>,
+    pvd: Vec<PvdEntry>,
+    written_states: usize,
+    io_error: Option<String>,
+    seconds: f64,
+}
+
+impl Sink<'_> {
+    /// A history row at `load` from the state `snapshot`.
+    fn row(&self, load: f64, snapshot: &Snapshot) -> FormingRow {
+        let tools = self
+            .built
+            .tools
+            .iter()
+            .map(|t| {
+                let mut force = snapshot.residual[t.dof];
+                // The residual of a floating tool is its contact force less
+                // its weight: add the weight back.
+                if let ToolMotion::Floating { weight, .. } = t.spec.motion {
+                    force += weight;
+                }
+                ToolRow {
+                    displacement: snapshot.u[t.dof],
+                    force,
+                }
+            })
+            .collect();
+        let reactions = self
+            .case
+            .boundaries
+            .iter()
+            .zip(&self.built.boundary_nodes)
+            .map(|(b, nodes)| {
+                let mut r = [0.0; 3];
+                for &n in nodes {
+                    for (k, rk) in r.iter_mut().enumerate() {
+                        if b.fixed[k] {
+                            *rk += snapshot.residual[3 * n + k];
+                        }
+                    }
+                }
+                r
+            })
+            .collect();
+        FormingRow {
+            load,
+            time: None,
+            tools,
+            reactions,
+            iterations: None,
+            augmentations: None,
+            max_penetration: None,
+            multiplier_change: None,
+            contacts: None,
+            residual: None,
+            increments: None,
+        }
+    }
+
+    /// Writes the VTU files of the state `snapshot` at `load` if it is an
+    /// output state.
+    fn states(&mut self, load: f64, snapshot: &Snapshot) {
+        let due = self
+            .case
+            .states
+            .iter()
+            .filter(|s| **s <= load + 1e-9)
+            .count();
+        if due <= self.written_states {
+            return;
+        }
+        self.written_states = due;
+        let index = due;
+        for (p, ply) in self.built.plies.iter().enumerate() {
+            let name = format!("{}_{index:04}.vtu", file_stem(&ply.name));
+            let path = self.out.join("vtu").join(&name);
+            if let Err(e) = write_ply_vtu(&path, self.case, self.built, p, snapshot, load) {
+                self.io_error.get_or_insert(e);
+            }
+            self.pvd.push(PvdEntry {
+                time: load,
+                file: format!("vtu/{name}"),
+                part: p,
+            });
+        }
+    }
+}
+
+/// A file-name stem from a ply or tool name.
+fn file_stem(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// One ply's VTU at a state.
+fn write_ply_vtu(
+    path: &Path,
+    case: &FormingCase,
+    built: &FormingModel,
+    p: usize,
+    snapshot: &Snapshot,
+    load: f64,
+) -> Result<(), String> {
+    let ply = &built.plies[p];
+    let u = snapshot.u;
+    let offset = ply.node_offset;
+    let points: Vec<[f64; 3]> = ply
+        .mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(n, x)| {
+            let g = offset + n;
+            [x.x + u[3 * g], x.y + u[3 * g + 1], x.z + u[3 * g + 2]]
+        })
+        .collect();
+    let displacement: Vec<[f64; 3]> = (0..ply.mesh.nodes.len())
+        .map(|n| {
+            let g = offset + n;
+            [u[3 * g], u[3 * g + 1], u[3 * g + 2]]
+        })
+        .collect();
+    let fields = element_fields(&ply.membrane, u).map_err(|(e, err)| {
+        format!(
+            "ply \"{}\": element {}: {err}",
+            ply.name,
+            ply.mesh.element_label(e)
+        )
+    })?;
+    let column = |f: fn(&crate::post::fields::ElementFields) -> f64| {
+        fields.iter().map(f).collect::<Vec<f64>>()
+    };
+    let e22 = column(|f| f.e22);
+    let gamma = column(|f| f.shear_angle_deg);
+    let e_perp = column(|f| f.e_perp);
+    let i4 = column(|f| f.i4);
+    let i6 = column(|f| f.i6);
+    let i8 = column(|f| f.i8);
+    let i11 = column(|f| f.i11);
+    let k11 = column(|f| f.k11);
+    let w = column(|f| f.energy_density);
+    let stress: Vec<[f64; 3]> = fields.iter().map(|f| f.stress_xy).collect();
+    let piece = VtuPiece {
+        points: &points,
+        triangles: &ply.mesh.triangles,
+        point_fields: vec![Field {
+            name: "displacement",
+            data: FieldData::Vector3(&displacement),
+        }],
+        cell_fields: vec![
+            Field {
+                name: "E22",
+                data: FieldData::Scalar(&e22),
+            },
+            Field {
+                name: "shear_angle_deg",
+                data: FieldData::Scalar(&gamma),
+            },
+            Field {
+                name: "E_perp",
+                data: FieldData::Scalar(&e_perp),
+            },
+            Field {
+                name: "I4",
+                data: FieldData::Scalar(&i4),
+            },
+            Field {
+                name: "I6",
+                data: FieldData::Scalar(&i6),
+            },
+            Field {
+                name: "I8",
+                data: FieldData::Scalar(&i8),
+            },
+            Field {
+                name: "I11",
+                data: FieldData::Scalar(&i11),
+            },
+            Field {
+                name: "k11",
+                data: FieldData::Scalar(&k11),
+            },
+            Field {
+                name: "energy_density",
+                data: FieldData::Scalar(&w),
+            },
+            Field {
+                name: "S",
+                data: FieldData::SymTensor2(&stress),
+            },
+        ],
+        comment: vec![
+            format!(
+                "ncform: {} ({}), ply \"{}\"",
+                case.title, case.source, ply.name
+            ),
+            format!("programme fraction {load}"),
+            format!("units: {UNITS}; E22 = I8-1, E_perp = I11-1 (paper Section 4)"),
+            "S: second Piola-Kirchhoff stress [MPa] in the reference global x-y axes (xx, yy, xy)"
+                .into(),
+        ],
+    };
+    write_vtu(path, &piece).map_err(|e| io_err(path, e))
+}
+
+/// Runs a forming case and writes its outputs into `out`.
+///
+/// # Errors
+/// Set-up failures (case, meshes, tools) and I/O errors, naming the file.
+pub fn run_forming(
+    case: &FormingCase,
+    out: &Path,
+    mut progress: Progress,
+) -> Result<FormingSummary, String> {
+    let wall = Instant::now();
+    let mut built = case.build()?;
+    std::fs::create_dir_all(out.join("vtu")).map_err(|e| io_err(out, e))?;
+    let dofs = built.dofs();
+    let mut model = std::mem::replace(&mut built.model, crate::model::Model::new(0));
+    let mut sink = Sink {
+        case,
+        built: &built,
+        out,
+        history: Vec::new(),
+        pvd: Vec::new(),
+        written_states: 0,
+        io_error: None,
+        seconds: 0.0,
+    };
+    let report = match case.solver_kind {
+        SolverKind::QuasiStatic => {
+            run_quasi_static(case, &mut model, dofs, &mut sink, &mut progress)?
+        }
+        SolverKind::Explicit => run_explicit(case, &mut model, &dofs, &mut sink, &mut progress)?,
+    };
+    progress.finish();
+    let output_clock = Instant::now();
+    if let Some(e) = sink.io_error.take() {
+        return Err(e);
+    }
+    write_pvd(
+        &out.join("forming.pvd"),
+        &sink.pvd,
+        &[
+            format!("ncform: {} ({})", case.title, case.source),
+            "time = programme fraction (0 to 1); parts: the plies, then the tools; units: mm, N, MPa".into(),
+        ],
+    )
+    .map_err(|e| io_err(&out.join("forming.pvd"), e))?;
+    write_history(case, &built, out, &sink.history, &report.status)?;
+    if let Some(records) = &report.records {
+        write_energy(case, out, records, &report.status)?;
+    }
+    sink.seconds += output_clock.elapsed().as_secs_f64();
+    if let Some(figures) = &report.explicit {
+        for warning in &figures.warnings {
+            eprintln!("warning: {warning}");
+        }
+    }
+    let summary = FormingSummary {
+        case: case.source.clone(),
+        title: case.title.clone(),
+        complete: report.status == RunStatus::Complete,
+        status: report.status.clone(),
+        solver: case.solver_kind,
+        units: UNITS,
+        plies: built
+            .plies
+            .iter()
+            .map(|p| PlySummary {
+                name: p.name.clone(),
+                nodes: p.mesh.nodes.len(),
+                triangles: p.mesh.triangles.len(),
+            })
+            .collect(),
+        tools: built
+            .tools
+            .iter()
+            .map(|t| {
+                let motion = match t.spec.motion {
+                    ToolMotion::Fixed => "fixed".to_string(),
+                    ToolMotion::Prescribed { displacement, .. } => {
+                        format!("prescribed, {displacement} mm")
+                    }
+                    ToolMotion::Floating { mass, weight, .. } => {
+                        format!(
+                            "floating, {} kg, {weight} N",
+                            mass / crate::case::forming::KG_IN_T
+                        )
+                    }
+                };
+                format!("{} ({motion})", t.spec.name)
+            })
+            .collect(),
+        unknowns: report.unknowns,
+        nonzeros: report.nonzeros,
+        steps: sink.history.len(),
+        newton_iterations: report.newton_iterations,
+        augmentations: report.augmentations,
+        explicit: report.explicit,
+        timings: report.timings,
+        output_seconds: sink.seconds,
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        history: std::mem::take(&mut sink.history),
+    };
+    let path = out.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| io_err(&path, e))?;
+    std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e))?;
+    Ok(summary)
+}
+
+/// What either solver hands back.
+struct Report {
+    status: RunStatus,
+    unknowns: usize,
+    nonzeros: usize,
+    newton_iterations: usize,
+    augmentations: usize,
+    timings: Timings,
+    explicit: Option<ExplicitFigures>,
+    records: Option<Vec<ExplicitRecord>>,
+}
+
+fn run_quasi_static(
+    case: &FormingCase,
+    model: &mut crate::model::Model,
+    dofs: DofMap,
+    sink: &mut Sink,
+    progress: &mut Progress,
+) -> Result<Report, String> {
+    let mut u = vec![0.0; dofs.total];
+    let result = solve_quasi_static(
+        model,
+        dofs,
+        &case.solver,
+        1.0,
+        &case.states,
+        &mut u,
+        |record, snapshot| {
+            let clock = Instant::now();
+            let mut row = sink.row(record.load, snapshot);
+            row.iterations = Some(record.iterations);
+            row.augmentations = Some(record.augmentations);
+            row.residual = record.residuals.last().copied();
+            if let Some(c) = &record.contact {
+                row.max_penetration = Some(c.max_penetration);
+                row.multiplier_change = Some(c.multiplier_change);
+                row.contacts = Some((c.active, c.slipping));
+            }
+            let force = row.tools.first().map_or(0.0, |t| t.force);
+            let detail = format!(
+                "step {}, {} iterations, {} augmentations",
+                record.step, record.iterations, record.augmentations
+            );
+            progress.update(record.load, force, &detail, 1.0);
+            sink.history.push(row);
+            sink.states(record.load, snapshot);
+            sink.seconds += clock.elapsed().as_secs_f64();
+        },
+    )?;
+    Ok(Report {
+        status: result.status,
+        unknowns: result.unknowns,
+        nonzeros: result.nonzeros,
+        newton_iterations: result.newton_iterations,
+        augmentations: result.augmentations,
+        timings: Timings::QuasiStatic(result.timings),
+        explicit: None,
+        records: None,
+    })
+}
+
+fn run_explicit(
+    case: &FormingCase,
+    model: &mut crate::model::Model,
+    dofs: &DofMap,
+    sink: &mut Sink,
+    progress: &mut Progress,
+) -> Result<Report, String> {
+    let params = case.explicit.parameters();
+    let rows = case.history_rows;
+    let mut fractions: Vec<f64> = (1..=rows).map(|k| k as f64 / rows as f64).collect();
+    fractions.extend_from_slice(&case.states);
+    let times: Vec<f64> = fractions
+        .iter()
+        .map(|f| params.time_of_load_fraction(*f))
+        .collect();
+    let mut state = ExplicitState::at_rest(dofs.total);
+    let result = solve_explicit(
+        model,
+        dofs,
+        &params,
+        1.0,
+        &times,
+        &mut state,
+        |record, snapshot| {
+            let mut row = sink.row(record.load, snapshot);
+            row.time = Some(record.time);
+            row.increments = Some(record.increment);
+            let force = row.tools.first().map_or(0.0, |t| t.force);
+            let detail = format!(
+                "t = {:.4} s, {} increments, KE/IE = {:.2e}",
+                record.time,
+                record.increment,
+                record.energies.kinetic_ratio()
+            );
+            progress.update(record.load, force, &detail, 1.0);
+            sink.history.push(row);
+            sink.states(record.load, snapshot);
+        },
+    )
+    .map_err(|e| format!("{}: {e}", case.source))?;
+    let passes = result.timings.element_pass + result.timings.node_pass;
+    Ok(Report {
+        status: result.status.clone(),
+        unknowns: dofs.n_free(),
+        nonzeros: 0,
+        newton_iterations: 0,
+        augmentations: 0,
+        timings: Timings::Explicit(result.timings),
+        explicit: Some(ExplicitFigures {
+            increments: result.increments,
+            duration: params.duration,
+            initial_critical_time_step: result.initial_critical_time_step,
+            time_step_range: result.time_step_range,
+            mass: result.mass,
+            max_kinetic_ratio: result.max_kinetic_ratio,
+            max_relative_balance_error: result.max_relative_balance_error,
+            final_energies: result.records.last().map(|r| r.energies),
+            element_cycles_per_second: if passes > 0.0 {
+                result.element_cycles as f64 / passes
+            } else {
+                0.0
+            },
+            threads: result.threads,
+            warnings: result.warnings.clone(),
+        }),
+        records: Some(result.records),
+    })
+}
+
+fn status_line(status: &RunStatus) -> String {
+    match status {
+        RunStatus::Complete => "status: complete".to_string(),
+        RunStatus::Incomplete {
+            load_reached,
+            load_attempted,
+            reason,
+        } => format!(
+            "status: INCOMPLETE - stopped at programme fraction {load_reached}; the step to {load_attempted} failed: {reason}"
+        ),
+    }
+}
+
+/// `history.csv` and `reactions.png`.
+fn write_history(
+    case: &FormingCase,
+    built: &FormingModel,
+    out: &Path,
+    history: &[FormingRow],
+    status: &RunStatus,
+) -> Result<(), String> {
+    let mut header: Vec<String> = vec!["programme fraction [-]".into(), "time [s]".into()];
+    for t in &built.tools {
+        header.push(format!("{} displacement [mm]", t.spec.name));
+        header.push(format!("{} force [N]", t.spec.name));
+    }
+    for (i, b) in case.boundaries.iter().enumerate() {
+        for axis in ["x", "y", "z"] {
+            header.push(format!(
+                "boundary {} ({}) reaction {axis} [N]",
+                i + 1,
+                b.nodes
+            ));
+        }
+    }
+    for h in [
+        "iterations [-]",
+        "augmentations [-]",
+        "max penetration [mm]",
+        "multiplier change [-]",
+        "closed contacts [-]",
+        "slipping contacts [-]",
+        "residual [N]",
+    ] {
+        header.push(h.into());
+    }
+    let rows: Vec<Vec<f64>> = history
+        .iter()
+        .map(|h| {
+            let mut row = vec![h.load, h.time.unwrap_or(0.0)];
+            for t in &h.tools {
+                row.extend([t.displacement, t.force]);
+            }
+            for r in &h.reactions {
+                row.extend(r);
+            }
+            let (closed, slipping) = h.contacts.unwrap_or((0, 0));
+            row.extend([
+                h.iterations.unwrap_or(0) as f64,
+                h.augmentations.unwrap_or(0) as f64,
+                h.max_penetration.unwrap_or(0.0),
+                h.multiplier_change.unwrap_or(0.0),
+                closed as f64,
+                slipping as f64,
+                h.residual.unwrap_or(0.0),
+            ]);
+            row
+        })
+        .collect();
+    let path = out.join("history.csv");
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(
+        &path,
+        &[
+            "ncform run: forming history (tools, boundary reactions, contact)".to_string(),
+            format!("case: {} ({})", case.title, case.source),
+            status_line(status),
+            "tool force: force of the plies on the tool along its direction (what drives or holds it; positive when the plies resist its motion)".into(),
+            format!("units: {UNITS}"),
+        ],
+        &header_refs,
+        &rows,
+    )
+    .map_err(|e| io_err(&path, e))?;
+    let suffix = if matches!(status, RunStatus::Complete) {
+        ""
+    } else {
+        " (INCOMPLETE)"
+    };
+    let mut panels = Vec::new();
+    for (i, t) in built.tools.iter().enumerate() {
+        panels.push(Panel {
+            title: format!("{}{suffix}", t.spec.name),
+            x_label: format!("{} displacement [mm]", t.spec.name),
+            y_label: "force [N]".into(),
+            series: vec![Series {
+                label: "force".into(),
+                points: history
+                    .iter()
+                    .map(|h| (h.tools[i].displacement, h.tools[i].force))
+                    .collect(),
+            }],
+        });
+    }
+    for (i, b) in case.boundaries.iter().enumerate() {
+        panels.push(Panel {
+            title: format!("boundary {} ({}){suffix}", i + 1, b.nodes),
+            x_label: "programme fraction [-]".into(),
+            y_label: "reaction [N]".into(),
+            series: ["x", "y", "z"]
+                .iter()
+                .enumerate()
+                .map(|(k, axis)| Series {
+                    label: (*axis).into(),
+                    points: history
+                        .iter()
+                        .map(|h| (h.load, h.reactions[i][k]))
+                        .collect(),
+                })
+                .collect(),
+        });
+    }
+    if panels.is_empty() {
+        return Ok(());
+    }
+    let cols = panels.len().min(3);
+    let rows = panels.len().div_ceil(cols);
+    write_panels(
+        &out.join("reactions.png"),
+        &panels,
+        (rows, cols),
+        (600 * cols as u32, 500 * rows as u32),
+    )
+}
+
+/// `energy.csv` and `energy.png` of an explicit run.
+fn write_energy(
+    case: &FormingCase,
+    out: &Path,
+    records: &[ExplicitRecord],
+    status: &RunStatus,
+) -> Result<(), String> {
+    let path = out.join("energy.csv");
+    write_csv(
+        &path,
+        &[
+            "ncform run: energy history of the explicit solver".to_string(),
+            format!("case: {} ({})", case.title, case.source),
+            status_line(status),
+            "balance error = internal + contact + kinetic + damping + friction - external work - initial energy; relative to the largest of those".into(),
+            format!("units: {UNITS}; energies in N*mm (= mJ)"),
+        ],
+        &[
+            "time [s]",
+            "programme fraction [-]",
+            "internal [N*mm]",
+            "contact [N*mm]",
+            "kinetic [N*mm]",
+            "external work [N*mm]",
+            "load work [N*mm]",
+            "damping [N*mm]",
+            "friction [N*mm]",
+            "balance error [N*mm]",
+            "relative balance error [-]",
+            "kinetic/internal [-]",
+        ],
+        &records
+            .iter()
+            .map(|r| {
+                let e = &r.energies;
+                vec![
+                    r.time,
+                    r.load,
+                    e.internal,
+                    e.contact,
+                    e.kinetic,
+                    e.external_work,
+                    e.load_work,
+                    e.damping,
+                    e.friction,
+                    e.balance_error,
+                    e.relative_balance_error,
+                    e.kinetic_ratio(),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    )
+    .map_err(|e| io_err(&path, e))?;
+    let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
+        label: label.to_string(),
+        points: records.iter().map(|r| (r.time, f(r))).collect(),
+    };
+    let suffix = if matches!(status, RunStatus::Complete) {
+        ""
+    } else {
+        " (INCOMPLETE)"
+    };
+    write_panels(
+        &out.join("energy.png"),
+        &[
+            Panel {
+                title: format!("energies{suffix}"),
+                x_label: "time [s]".into(),
+                y_label: "energy [N*mm]".into(),
+                series: vec![
+                    series("internal", |r| r.energies.internal),
+                    series("external work", |r| r.energies.external_work),
+                    series("kinetic", |r| r.energies.kinetic),
+                    series("contact", |r| r.energies.contact),
+                    series("friction", |r| r.energies.friction),
+                    series("damping", |r| r.energies.damping),
+                ],
+            },
+            Panel {
+                title: "kinetic / internal energy".into(),
+                x_label: "time [s]".into(),
+                y_label: "KE / IE [%]".into(),
+                series: vec![series("KE/IE", |r| 100.0 * r.energies.kinetic_ratio())],
+            },
+            Panel {
+                title: "energy balance error".into(),
+                x_label: "time [s]".into(),
+                y_label: "log10 of the relative balance error [-]".into(),
+                series: vec![series("log10(|balance| / scale)", |r| {
+                    r.energies.relative_balance_error.max(1e-300).log10()
+                })],
+            },
+        ],
+        (1, 3),
+        (1800, 550),
+    )
+}
