@@ -3,7 +3,7 @@
 
 What this checks
 ================
-The reference is built from the ENERGY ALONE, as stated in shared/spec/model.md
+The reference is built from the ENERGY ALONE, as stated in docs/theory.md
 (which holds over the paper where they differ): sympy differentiates W; no
 derivative of W is written by hand anywhere in this file. The reference is then
 compared with the Rust implementation, `ncform material eval`, at thousands of

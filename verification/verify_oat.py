@@ -3,7 +3,7 @@
 
 What this checks
 ================
-ncform solves the OAT (shared/spec/scenarios.md §1) with its own membrane
+ncform solves the OAT (docs/cases.md) with its own membrane
 elements, law and Newton solver. This suite solves the SAME discrete problem
 with code that shares nothing with the Rust sources:
 
@@ -15,7 +15,7 @@ with code that shares nothing with the Rust sources:
   `ElementVector(ElementTriP1())` (2-D, two dofs per node), residual and
   tangent assembled with skfem `LinearForm` / `BilinearForm`, Dirichlet
   conditions by `skfem.condense` / `skfem.solve`;
-* the law: re-implemented below in numpy from shared/spec/model.md (energy,
+* the law: re-implemented below in numpy from docs/theory.md (energy,
   S = 2 dW/dC with the chain rule through the invariants written out here; the
   tangent by central differences of that S -- it only has to make Newton
   converge; the residual, and therefore the force, uses the exact S). The law
@@ -93,7 +93,7 @@ NEWTON_TOL = 1e-9      # [N] max |residual| over the free dofs
 STEP = 1.0             # [mm] clamp-displacement increment of the reference solver
 
 # --------------------------------------------------------------------------
-# The law (shared/spec/model.md), numpy, vectorised over leading axes.
+# The law (docs/theory.md), numpy, vectorised over leading axes.
 # --------------------------------------------------------------------------
 
 

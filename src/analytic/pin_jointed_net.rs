@@ -1,5 +1,5 @@
 //! The pin-jointed-net limit of the 45° off-axis tension test
-//! (`shared/spec/scenarios.md` §5): rovings and stitching inextensible, only
+//! (`docs/verification.md`): rovings and stitching inextensible, only
 //! the shear energy W6 active. With `D = L − W` and clamp displacement `d`:
 //!
 //! ```text
