@@ -5,6 +5,10 @@
 //! and its Hessian (the curvature of the level sets), which is what the
 //! consistent contact tangent needs. See `docs/contact.md`.
 
+pub mod kernel;
+
+pub use kernel::{ContactError, ContactStatus, ToolCoupled, couple_tool_translation};
+
 use nalgebra::{Matrix3, Vector3};
 
 /// A point's relation to a rigid surface, in the surface's own frame.
