@@ -5,6 +5,16 @@
 //! and its Hessian (the curvature of the level sets), which is what the
 //! consistent contact tangent needs. See `docs/contact.md`.
 
+pub mod mesh_tool;
+pub mod surface;
+pub mod tessellate;
+
+pub use mesh_tool::{EdgeDefect, MeshOptions, MeshSurface, MeshToolError};
+pub use surface::{
+    Cylinder, Placed, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus,
+};
+pub use tessellate::Tessellation;
+
 use nalgebra::{Matrix3, Vector3};
 
 /// A point's relation to a rigid surface, in the surface's own frame.
