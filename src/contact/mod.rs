@@ -6,8 +6,16 @@
 //! consistent contact tangent needs. See `docs/contact.md`.
 
 pub mod kernel;
+pub mod mesh_tool;
+pub mod surface;
+pub mod tessellate;
 
 pub use kernel::{ContactError, ContactStatus, ToolCoupled, couple_tool_translation};
+pub use mesh_tool::{EdgeDefect, MeshOptions, MeshSurface, MeshToolError};
+pub use surface::{
+    Cylinder, Placed, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus,
+};
+pub use tessellate::Tessellation;
 
 use nalgebra::{Matrix3, Vector3};
 
