@@ -3,12 +3,22 @@
 //! per tool, contact terms, gravity and dead loads, rigid-body masses and
 //! the Dirichlet conditions (`docs/model.md`).
 
-use nalgebra::Vector3;
+use std::sync::Arc;
 
-use super::forming::{FormingCase, PlyMesh, ToolMotion, ToolSpec};
+use nalgebra::{SymmetricEigen, Vector3};
+
+use super::forming::{FormingCase, PlyMesh, ToolMotion, ToolShape, ToolSpec};
+use crate::contact::{
+    Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole, RigidSurface,
+    Side, Sphere, Tessellation, Torus,
+};
+use crate::material::{FibreFrame, MembraneMaterial, Sym2};
 use crate::mesh::Mesh;
 use crate::mesh::generate::{GridPattern, OatSpecimen, oat_specimen};
-use crate::model::{DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model, RigidBodyMass};
+use crate::model::{
+    ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model, RigidBodyMass,
+    ToolContact,
+};
 use crate::solver::{Dirichlet, DofMap};
 
 /// A ply of the built model.
@@ -41,6 +51,111 @@ pub struct BuiltTool {
     /// Unit direction of its dof (the motion's direction; the axis for a
     /// fixed tool).
     pub direction: Vector3<f64>,
+    /// Its surface drawn as triangles, world frame, at `q = 0`.
+    pub drawing: Tessellation,
+}
+
+/// Segments of a drawn circle (tessellation of round tools).
+const DRAWN_SEGMENTS: usize = 72;
+
+/// A tool's surface in the world frame at `q = 0`, and its drawing.
+fn tool_surface(
+    case: &FormingCase,
+    spec: &ToolSpec,
+) -> Result<(Arc<dyn RigidSurface>, Tessellation), String> {
+    let context =
+        |e: &dyn std::fmt::Display| format!("{}: tool \"{}\": {e}", case.source, spec.name);
+    let placement = Placement::new(spec.origin, spec.axis, None).map_err(|e| context(&e))?;
+    let side = if spec.inside {
+        Side::Inside
+    } else {
+        Side::Outside
+    };
+    fn placed<S: RigidSurface + 'static>(
+        shape: S,
+        placement: Placement,
+        drawing: Tessellation,
+    ) -> (Arc<dyn RigidSurface>, Tessellation) {
+        let world = drawing.to_world(&placement);
+        (Arc::new(Placed::new(shape, placement)), world)
+    }
+    let e = spec.extent;
+    Ok(match &spec.shape {
+        ToolShape::Plane => {
+            let shape = Plane::new();
+            let drawing = shape.tessellate(e, 8).map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::Sphere { radius } => {
+            let shape = Sphere::new(*radius, side).map_err(|x| context(&x))?;
+            let drawing = shape
+                .tessellate(std::f64::consts::PI, DRAWN_SEGMENTS)
+                .map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::Cylinder { radius } => {
+            let shape = Cylinder::new(*radius, side).map_err(|x| context(&x))?;
+            let drawing = shape
+                .tessellate(-e, e, DRAWN_SEGMENTS)
+                .map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::Torus {
+            major_radius,
+            minor_radius,
+        } => {
+            let shape = Torus::new(*major_radius, *minor_radius, side).map_err(|x| context(&x))?;
+            let drawing = shape.tessellate(DRAWN_SEGMENTS).map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::PlateWithHole {
+            opening_radius,
+            fillet_radius,
+        } => {
+            let shape =
+                PlateWithHole::new(*opening_radius, *fillet_radius).map_err(|x| context(&x))?;
+            let outer = (opening_radius + fillet_radius + e).max(e);
+            let drawing = shape
+                .tessellate(outer, fillet_radius + 10.0, DRAWN_SEGMENTS)
+                .map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::Mesh {
+            path,
+            scale,
+            closed,
+        } => {
+            let shape = MeshSurface::from_file(
+                path,
+                &MeshOptions {
+                    scale: *scale,
+                    require_closed: *closed,
+                    flip_normals: false,
+                },
+            )
+            .map_err(|x| context(&x))?;
+            let drawing = shape.tessellation();
+            let translation = Placement::translation(spec.origin).map_err(|x| context(&x))?;
+            placed(shape, translation, drawing)
+        }
+    })
+}
+
+/// The largest eigenvalue of a law's tangent at the reference state
+/// (`C = I`) [MPa]: the membrane's stiffest modulus, the scale of the
+/// automatic contact penalty.
+fn reference_modulus(material: &crate::material::Material) -> f64 {
+    let identity = Sym2::new(1.0, 1.0, 0.0);
+    match material.stress_tangent(&identity, &FibreFrame::aligned()) {
+        Ok((_, tangent)) => {
+            let symmetric = 0.5 * (tangent + tangent.transpose());
+            SymmetricEigen::new(symmetric)
+                .eigenvalues
+                .iter()
+                .fold(0.0_f64, |m, &v| m.max(v))
+        }
+        Err(_) => 0.0,
+    }
 }
 
 /// A forming case turned into a model.
@@ -279,9 +394,11 @@ impl FormingCase {
             ));
         }
 
-        // Tools: one dof each (fixed, driven or free).
+        // Tools: one dof each (fixed, driven or free), and a contact term
+        // per ply and tool.
         let mut tools = Vec::new();
         for spec in &self.tools {
+            let (surface, drawing) = tool_surface(self, spec)?;
             let extra = model.add_extra(spec.name.clone());
             let dof = model.extra_dof(extra);
             let direction = match spec.motion {
@@ -316,11 +433,84 @@ impl FormingCase {
                     direction
                 }
             };
+            for (ply, ply_spec) in plies.iter().zip(&self.plies) {
+                let offset = self.contact.offset.unwrap_or(0.5 * ply_spec.thickness);
+                let count = ply.mesh.nodes.len();
+                let mean_area = ply.nodal_area.iter().sum::<f64>() / count.max(1) as f64;
+                let automatic = reference_modulus(&ply_spec.material.material) * ply_spec.thickness;
+                let penalties: Vec<f64> = ply
+                    .nodal_area
+                    .iter()
+                    .map(|a| match self.contact.penalty {
+                        Some(p) => p,
+                        None => self.contact.penalty_scale * automatic * a / mean_area,
+                    })
+                    .collect();
+                if let Some((n, p)) = penalties
+                    .iter()
+                    .enumerate()
+                    .find(|(_, p)| !(p.is_finite() && **p > 0.0))
+                {
+                    return Err(format!(
+                        "{}: contact of ply \"{}\" with tool \"{}\": node {}: penalty {p} N/mm: expected a positive stiffness (set contact.penalty)",
+                        self.source,
+                        ply.name,
+                        spec.name,
+                        ply.mesh.node_label(n)
+                    ));
+                }
+                // A mid-surface inside the tool (more than the offset into
+                // the contact layer) is a set-up error.
+                for (n, x) in ply.mesh.nodes.iter().enumerate() {
+                    if let Some(point) = surface.closest(x, offset)
+                        && point.distance < 0.0
+                    {
+                        return Err(format!(
+                            "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {:.4} mm inside the tool; the mid-surface may sit at most the contact offset ({offset} mm) from touching: move the tool or the ply",
+                            self.source,
+                            spec.name,
+                            ply.name,
+                            ply.mesh.node_label(n),
+                            x.x,
+                            x.y,
+                            x.z,
+                            -point.distance
+                        ));
+                    }
+                }
+                let name = if self.plies.len() == 1 {
+                    format!("contact with {}", spec.name)
+                } else {
+                    format!("contact of {} with {}", ply.name, spec.name)
+                };
+                model.add(ToolContact::new(
+                    name,
+                    surface.clone(),
+                    direction,
+                    extra,
+                    nodes.len(),
+                    (0..count).map(|n| n + ply.node_offset).collect(),
+                    ply.mesh.nodes.clone(),
+                    vec![offset; count],
+                    ply.nodal_area.clone(),
+                    penalties,
+                    ContactOptions {
+                        friction: spec.friction,
+                        gap_tolerance: self
+                            .contact
+                            .gap_tolerance
+                            .unwrap_or(0.01 * ply_spec.thickness),
+                        multiplier_tolerance: self.contact.multiplier_tolerance,
+                        explicit_stiffness: self.contact.explicit_stiffness,
+                    },
+                ));
+            }
             tools.push(BuiltTool {
                 spec: spec.clone(),
                 extra,
                 dof,
                 direction,
+                drawing,
             });
         }
         Ok(FormingModel {

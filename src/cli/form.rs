@@ -253,6 +253,19 @@ impl Sink<'_> {
         }
         self.written_states = due;
         let index = due;
+        let plies = self.built.plies.len();
+        for (t, tool) in self.built.tools.iter().enumerate() {
+            let name = format!("tool-{}_{index:04}.vtu", file_stem(&tool.spec.name));
+            let path = self.out.join("vtu").join(&name);
+            if let Err(e) = write_tool_vtu(&path, self.case, tool, snapshot.u[tool.dof], load) {
+                self.io_error.get_or_insert(e);
+            }
+            self.pvd.push(PvdEntry {
+                time: load,
+                file: format!("vtu/{name}"),
+                part: plies + t,
+            });
+        }
         for (p, ply) in self.built.plies.iter().enumerate() {
             let name = format!("{}_{index:04}.vtu", file_stem(&ply.name));
             let path = self.out.join("vtu").join(&name);
@@ -279,6 +292,80 @@ fn file_stem(name: &str) -> String {
             }
         })
         .collect()
+}
+
+/// One tool's VTU at its displacement `q` along its direction.
+fn write_tool_vtu(
+    path: &Path,
+    case: &FormingCase,
+    tool: &crate::case::forming_model::BuiltTool,
+    q: f64,
+    load: f64,
+) -> Result<(), String> {
+    let shift = q * tool.direction;
+    let points: Vec<[f64; 3]> = tool
+        .drawing
+        .vertices
+        .iter()
+        .map(|v| [v.x + shift.x, v.y + shift.y, v.z + shift.z])
+        .collect();
+    let piece = VtuPiece {
+        points: &points,
+        triangles: &tool.drawing.triangles,
+        point_fields: vec![],
+        cell_fields: vec![],
+        comment: vec![
+            format!(
+                "ncform: {} ({}), tool \"{}\"",
+                case.title, case.source, tool.spec.name
+            ),
+            format!("programme fraction {load}; tool displacement {q} mm along its direction"),
+            format!("units: {UNITS}"),
+        ],
+    };
+    write_vtu(path, &piece).map_err(|e| io_err(path, e))
+}
+
+/// Per node of ply `p`, the contact figures summed (forces, slip) or
+/// combined (status: the largest, gap: the smallest) over every tool.
+struct PlyContact {
+    status: Vec<i32>,
+    normal_force: Vec<f64>,
+    pressure: Vec<f64>,
+    friction_force: Vec<f64>,
+    slip: Vec<f64>,
+}
+
+fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> PlyContact {
+    let ply = &built.plies[p];
+    let count = ply.mesh.nodes.len();
+    let mut c = PlyContact {
+        status: vec![0; count],
+        normal_force: vec![0.0; count],
+        pressure: vec![0.0; count],
+        friction_force: vec![0.0; count],
+        slip: vec![0.0; count],
+    };
+    for term in model.terms_of::<crate::model::ToolContact>() {
+        for ((&node, contact), area) in term
+            .nodes()
+            .iter()
+            .zip(term.node_contacts())
+            .zip(term.areas())
+        {
+            let Some(n) = node.checked_sub(ply.node_offset).filter(|n| *n < count) else {
+                continue;
+            };
+            c.status[n] = c.status[n].max(contact.status as i32);
+            c.normal_force[n] += contact.normal_force;
+            if *area > 0.0 {
+                c.pressure[n] += contact.normal_force / area;
+            }
+            c.friction_force[n] += contact.friction_force;
+            c.slip[n] += contact.slip;
+        }
+    }
+    c
 }
 
 /// One ply's VTU at a state.
@@ -329,13 +416,36 @@ fn write_ply_vtu(
     let k11 = column(|f| f.k11);
     let w = column(|f| f.energy_density);
     let stress: Vec<[f64; 3]> = fields.iter().map(|f| f.stress_xy).collect();
+    let contact = ply_contact(built, p, snapshot.model);
     let piece = VtuPiece {
         points: &points,
         triangles: &ply.mesh.triangles,
-        point_fields: vec![Field {
-            name: "displacement",
-            data: FieldData::Vector3(&displacement),
-        }],
+        point_fields: vec![
+            Field {
+                name: "displacement",
+                data: FieldData::Vector3(&displacement),
+            },
+            Field {
+                name: "contact_status",
+                data: FieldData::Int(&contact.status),
+            },
+            Field {
+                name: "contact_pressure",
+                data: FieldData::Scalar(&contact.pressure),
+            },
+            Field {
+                name: "contact_normal_force",
+                data: FieldData::Scalar(&contact.normal_force),
+            },
+            Field {
+                name: "friction_force",
+                data: FieldData::Scalar(&contact.friction_force),
+            },
+            Field {
+                name: "slip",
+                data: FieldData::Scalar(&contact.slip),
+            },
+        ],
         cell_fields: vec![
             Field {
                 name: "E22",

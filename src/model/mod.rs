@@ -6,10 +6,12 @@
 //! [`Term`] interface; which terms exist is the case layer's business
 //! (`docs/model.md`).
 
+pub mod contact;
 pub mod loads;
 pub mod membrane;
 pub mod term;
 
+pub use contact::{ContactOptions, NodeContact, ToolContact};
 pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
 pub use term::{
@@ -77,6 +79,13 @@ impl Model {
         self.terms
             .iter()
             .find_map(|t| (t.as_ref() as &dyn std::any::Any).downcast_ref::<T>())
+    }
+
+    /// Every term of type `T`, in order.
+    pub fn terms_of<T: Term + 'static>(&self) -> impl Iterator<Item = &T> {
+        self.terms
+            .iter()
+            .filter_map(|t| (t.as_ref() as &dyn std::any::Any).downcast_ref::<T>())
     }
 
     /// `true` when every term's tangent is symmetric.

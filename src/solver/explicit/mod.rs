@@ -96,10 +96,12 @@ impl Energies {
         };
     }
 
-    /// `KE / IE`, or 0 while `IE = 0`.
+    /// `KE / (IE + CE)`: the kinetic energy over the energy stored in the
+    /// model (strain and contact springs), or 0 while nothing is stored.
     pub fn kinetic_ratio(&self) -> f64 {
-        if self.internal > 0.0 {
-            self.kinetic / self.internal
+        let stored = self.internal + self.contact;
+        if stored > 0.0 {
+            self.kinetic / stored
         } else {
             0.0
         }

@@ -1,0 +1,554 @@
+//! Contact of a ply's nodes with one rigid tool, with Coulomb friction
+//! (`docs/contact.md`). Node to surface: every node of the ply is checked
+//! against the tool, its mid-surface offset by half the ply's thickness
+//! (or a set offset). The tool translates along a fixed direction by its
+//! own dof `q` (fixed at 0, prescribed, or free for a floating tool), so
+//! each stencil is one node and the tool's dof, and the sparse pattern is
+//! known before any contact closes.
+//!
+//! - Quasi-static path: augmented Lagrangian normal and tangential parts
+//!   with the friction return map and the exact consistent tangent
+//!   ([`crate::contact::kernel::AugmentedLagrangian`]); multipliers updated
+//!   between Newton solves (Uzawa) until the penetration and the change of
+//!   the multipliers are below their tolerances; friction references
+//!   committed per accepted step.
+//! - Explicit path: penalty normal force and an elastic–plastic friction
+//!   spring ([`crate::contact::kernel::PenaltyContact`]) whose stiffness is
+//!   a fraction of each node's central-difference limit; stored and
+//!   dissipated energy in the balance.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use super::term::{Augmentation, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure};
+use crate::contact::kernel::{
+    AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
+    PenaltyContact, PenaltyState, couple_tool_translation, max_curvature,
+};
+use crate::contact::{RigidSurface, SurfacePoint};
+
+/// Nodes per task of the parallel node loops.
+const NODE_CHUNK: usize = 256;
+
+/// Distance beyond the offset within which a node is checked exactly
+/// against the tool every evaluation [mm]; farther nodes are open (the
+/// surface culls them). Large against any motion within one time
+/// increment or one Newton iteration's contact change.
+const CULL_MARGIN: f64 = 1.0;
+
+/// The per-node figures a user sees (VTU fields).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NodeContact {
+    /// 0 open, 1 stick, 2 slip.
+    pub status: u8,
+    /// Normal force [N].
+    pub normal_force: f64,
+    /// Magnitude of the friction force [N].
+    pub friction_force: f64,
+    /// Gap of the mid-surface offset to the tool [mm] (∞ when far).
+    pub gap: f64,
+    /// Accumulated slip along the tool [mm].
+    pub slip: f64,
+}
+
+fn status_code(status: ContactStatus) -> u8 {
+    match status {
+        ContactStatus::Open => 0,
+        ContactStatus::Stick => 1,
+        ContactStatus::Slip => 2,
+    }
+}
+
+/// Settings of one ply–tool contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactOptions {
+    /// Coulomb coefficient `μ ≥ 0`.
+    pub friction: f64,
+    /// Largest accepted penetration after augmentation [mm].
+    pub gap_tolerance: f64,
+    /// Largest accepted relative change of the multipliers per
+    /// augmentation.
+    pub multiplier_tolerance: f64,
+    /// Explicit penalty as a fraction of each node's central-difference
+    /// limit `4 m / Δt²`.
+    pub explicit_stiffness: f64,
+}
+
+/// The contact of a set of ply nodes with one rigid tool.
+pub struct ToolContact {
+    name: String,
+    surface: Arc<dyn RigidSurface>,
+    direction: Vector3<f64>,
+    extra: usize,
+    model_nodes: usize,
+    nodes: Vec<usize>,
+    reference: Vec<Vector3<f64>>,
+    offsets: Vec<f64>,
+    areas: Vec<f64>,
+    penalties: Vec<f64>,
+    options: ContactOptions,
+    implicit: Vec<ImplicitContactState>,
+    responses: Vec<ImplicitResponse>,
+    explicit: Vec<PenaltyState>,
+    springs: Vec<PenaltyContact>,
+    /// Per node: the last explicit curvature bound of the tool there.
+    curvatures: Vec<f64>,
+    partials: Vec<f64>,
+    outputs: Vec<NodeContact>,
+    /// Friction work of the accepted quasi-static steps [N·mm].
+    dissipated: f64,
+    /// Force of the plies on the tool along its direction at the last
+    /// evaluation [N] (`∂Π/∂q`).
+    tool_force: f64,
+}
+
+impl ToolContact {
+    /// Contact of the model nodes `nodes` (reference positions
+    /// `reference`, mid-surface offsets `offsets` [mm], nodal areas `areas`
+    /// [mm²], augmented-Lagrangian penalties `penalties` [N/mm]) with the
+    /// tool `surface` (world frame, at `q = 0`) translating along the unit
+    /// `direction` by extra dof `extra` of a model of `model_nodes` nodes.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        name: impl Into<String>,
+        surface: Arc<dyn RigidSurface>,
+        direction: Vector3<f64>,
+        extra: usize,
+        model_nodes: usize,
+        nodes: Vec<usize>,
+        reference: Vec<Vector3<f64>>,
+        offsets: Vec<f64>,
+        areas: Vec<f64>,
+        penalties: Vec<f64>,
+        options: ContactOptions,
+    ) -> Self {
+        let n = nodes.len();
+        let implicit = reference.iter().map(ImplicitContactState::new).collect();
+        let explicit = reference.iter().map(PenaltyState::new).collect();
+        Self {
+            name: name.into(),
+            surface,
+            direction,
+            extra,
+            model_nodes,
+            implicit,
+            responses: vec![ImplicitResponse::default_open(); n],
+            explicit,
+            springs: Vec::new(),
+            curvatures: vec![0.0; n],
+            partials: vec![0.0; n.div_ceil(NODE_CHUNK)],
+            outputs: vec![
+                NodeContact {
+                    gap: f64::INFINITY,
+                    ..Default::default()
+                };
+                n
+            ],
+            nodes,
+            reference,
+            offsets,
+            areas,
+            penalties,
+            options,
+            dissipated: 0.0,
+            tool_force: 0.0,
+        }
+    }
+
+    /// The model nodes this term checks.
+    pub fn nodes(&self) -> &[usize] {
+        &self.nodes
+    }
+
+    /// The nodal areas [mm²] (for contact pressures).
+    pub fn areas(&self) -> &[f64] {
+        &self.areas
+    }
+
+    /// The per-node figures of the last evaluation.
+    pub fn node_contacts(&self) -> &[NodeContact] {
+        &self.outputs
+    }
+
+    /// The tool's extra dof (index among the extras).
+    pub fn extra(&self) -> usize {
+        self.extra
+    }
+
+    /// Force of the plies on the tool along its direction at the last
+    /// evaluation [N]: the force that drives or holds it, positive when the
+    /// plies resist its motion.
+    pub fn tool_force(&self) -> f64 {
+        self.tool_force
+    }
+
+    /// The relative position `y = x − q d` of node slot `i` at `u`.
+    #[inline]
+    fn relative(&self, i: usize, u: &[f64]) -> Vector3<f64> {
+        let n = self.nodes[i];
+        let q = u[3 * self.model_nodes + self.extra];
+        self.reference[i] + Vector3::new(u[3 * n], u[3 * n + 1], u[3 * n + 2]) - q * self.direction
+    }
+
+    fn failure(&self, i: usize, reason: String) -> TermFailure {
+        TermFailure {
+            term: self.name.clone(),
+            what: "node",
+            index: self.nodes[i],
+            reason,
+        }
+    }
+
+    fn kernel(&self, i: usize) -> Result<AugmentedLagrangian, TermFailure> {
+        AugmentedLagrangian::new(
+            self.penalties[i],
+            self.penalties[i],
+            self.options.friction,
+            self.offsets[i],
+        )
+        .map_err(|e| self.failure(i, e.to_string()))
+    }
+
+    /// Every node's implicit response at `u` into `self.responses`.
+    fn respond(&mut self, u: &[f64]) -> Result<(), TermFailure> {
+        let first_failure = AtomicUsize::new(usize::MAX);
+        let this = &*self;
+        let responses: Vec<Result<ImplicitResponse, String>> = (0..self.nodes.len())
+            .into_par_iter()
+            .with_min_len(NODE_CHUNK)
+            .map(|i| {
+                let y = this.relative(i, u);
+                let cull = this.offsets[i]
+                    + CULL_MARGIN
+                    + this.implicit[i].normal_multiplier / this.penalties[i];
+                let point = this.surface.closest(&y, cull);
+                let kernel = this.kernel(i).map_err(|f| f.reason)?;
+                kernel
+                    .evaluate(&this.implicit[i], &y, point.as_ref())
+                    .map_err(|e| {
+                        first_failure.fetch_min(i, Ordering::Relaxed);
+                        e.to_string()
+                    })
+            })
+            .collect();
+        for (i, r) in responses.into_iter().enumerate() {
+            match r {
+                Ok(r) => self.responses[i] = r,
+                Err(reason) => return Err(self.failure(i, reason)),
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ImplicitResponse {
+    /// An open response (no force), for initial buffers.
+    fn default_open() -> Self {
+        Self {
+            status: ContactStatus::Open,
+            gap: f64::INFINITY,
+            normal_force: 0.0,
+            tangential_force: Vector3::zeros(),
+            slip_increment: Vector3::zeros(),
+            normal: Vector3::zeros(),
+            residual: Vector3::zeros(),
+            tangent: Matrix3::zeros(),
+        }
+    }
+}
+
+impl Term for ToolContact {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn stencils(&self) -> Stencils {
+        Stencils {
+            count: self.nodes.len(),
+            nodes: 1,
+            extras: 1,
+        }
+    }
+
+    fn stencil(&self, s: usize, nodes: &mut [usize], extras: &mut [usize]) {
+        nodes[0] = self.nodes[s];
+        extras[0] = self.extra;
+    }
+
+    /// The augmented-Lagrangian residual and consistent tangent of every
+    /// node against the tool, expanded to the node's dofs and the tool's
+    /// (`∂/∂q = −d·∂/∂y`). Returns the normal potential
+    /// `Σ ⟨λ_N − ε_N g⟩² / (2 ε_N)`.
+    fn evaluate(
+        &mut self,
+        state: &State,
+        force: &mut [f64],
+        tangent: Option<&mut [f64]>,
+    ) -> Result<f64, TermFailure> {
+        self.respond(state.u)?;
+        let mut potential = 0.0;
+        let mut tool_force = 0.0;
+        let mut tangent = tangent;
+        for (i, r) in self.responses.iter().enumerate() {
+            let coupled = couple_tool_translation(&self.direction, &r.residual, &r.tangent);
+            force[4 * i..4 * i + 4].copy_from_slice(coupled.residual.as_slice());
+            if let Some(k) = tangent.as_deref_mut() {
+                k[16 * i..16 * i + 16].copy_from_slice(coupled.tangent.as_slice());
+            }
+            tool_force += coupled.residual[3];
+            potential += 0.5 * r.normal_force * r.normal_force / self.penalties[i];
+            let out = &mut self.outputs[i];
+            out.status = status_code(r.status);
+            out.normal_force = r.normal_force;
+            out.friction_force = r.tangential_force.norm();
+            out.gap = r.gap;
+        }
+        self.tool_force = tool_force;
+        Ok(potential)
+    }
+
+    fn symmetric(&self) -> bool {
+        self.options.friction == 0.0
+    }
+
+    /// Uzawa: `λ_N ← t_N`, `λ_T ← t_T` at the converged state; converged
+    /// when the largest penetration is within the gap tolerance and the
+    /// multipliers changed by less than their tolerance.
+    fn augment(&mut self, state: &State) -> Option<Augmentation> {
+        if self.respond(state.u).is_err() {
+            return Some(Augmentation::default());
+        }
+        let mut norms = AugmentationNorms::default();
+        let (mut active, mut slipping) = (0, 0);
+        for (s, r) in self.implicit.iter_mut().zip(&self.responses) {
+            norms.add(&s.augment(r));
+            match r.status {
+                ContactStatus::Open => {}
+                ContactStatus::Stick => active += 1,
+                ContactStatus::Slip => {
+                    active += 1;
+                    slipping += 1;
+                }
+            }
+        }
+        let change = if norms.multiplier_squared > 0.0 {
+            norms.relative_change()
+        } else {
+            0.0
+        };
+        Some(Augmentation {
+            converged: norms.max_penetration <= self.options.gap_tolerance
+                && change <= self.options.multiplier_tolerance,
+            max_penetration: norms.max_penetration,
+            multiplier_change: change,
+            active,
+            slipping,
+        })
+    }
+
+    /// Friction references move to the converged positions; the step's
+    /// friction work `Σ t_T·Δs` and slip are accumulated.
+    fn commit(&mut self, state: &State) {
+        for i in 0..self.nodes.len() {
+            let y = self.relative(i, state.u);
+            let r = &self.responses[i];
+            if r.status != ContactStatus::Open {
+                self.dissipated += r.tangential_force.dot(&r.slip_increment);
+                self.outputs[i].slip += r.slip_increment.norm();
+            }
+            self.implicit[i].commit(&y);
+        }
+    }
+
+    fn restore(&mut self) {
+        for s in &mut self.implicit {
+            s.restore();
+        }
+    }
+
+    // --- explicit path ---------------------------------------------------
+
+    /// One stencil per node (its own force) and one for the tool's dof,
+    /// whose value the term reduces itself in node-chunk order.
+    fn explicit_stencils(&self) -> Stencils {
+        Stencils {
+            count: self.nodes.len() + 1,
+            nodes: 1,
+            extras: 1,
+        }
+    }
+
+    fn explicit_stencil(&self, s: usize, nodes: &mut [usize], extras: &mut [usize]) {
+        if s < self.nodes.len() {
+            nodes[0] = self.nodes[s];
+            extras[0] = NO_SLOT;
+        } else {
+            nodes[0] = NO_SLOT;
+            extras[0] = self.extra;
+        }
+    }
+
+    fn stiffness_from_time_step(&self) -> bool {
+        true
+    }
+
+    /// Penalties `k = c · 4 m/Δt²` from each node's mass and the step of
+    /// the rest of the model; states at the current positions.
+    fn explicit_setup(
+        &mut self,
+        state: &State,
+        masses: &Masses,
+        time_step: f64,
+    ) -> Result<(), TermFailure> {
+        let mut springs = Vec::with_capacity(self.nodes.len());
+        for i in 0..self.nodes.len() {
+            let m = masses.node[self.nodes[i]];
+            let spring = PenaltyContact::from_stable_step(
+                m,
+                time_step,
+                self.options.explicit_stiffness,
+                self.options.friction,
+                self.offsets[i],
+            )
+            .map_err(|e| self.failure(i, e.to_string()))?;
+            springs.push(spring);
+        }
+        self.springs = springs;
+        self.explicit = (0..self.nodes.len())
+            .map(|i| PenaltyState::new(&self.relative(i, state.u)))
+            .collect();
+        Ok(())
+    }
+
+    fn explicit_forces(&mut self, state: &State, out: &mut [f64]) -> Result<(), TermFailure> {
+        let u = state.u;
+        let n = self.nodes.len();
+        let first_failure = AtomicUsize::new(usize::MAX);
+        let (node_out, tool_out) = out.split_at_mut(4 * n);
+        let surface = &*self.surface;
+        let direction = self.direction;
+        let (nodes, reference, offsets, springs) =
+            (&self.nodes, &self.reference, &self.offsets, &self.springs);
+        let q = u[3 * self.model_nodes + self.extra];
+        node_out
+            .par_chunks_mut(4 * NODE_CHUNK)
+            .zip(self.explicit.par_chunks_mut(NODE_CHUNK))
+            .zip(self.outputs.par_chunks_mut(NODE_CHUNK))
+            .zip(self.curvatures.par_chunks_mut(NODE_CHUNK))
+            .zip(self.partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, ((((f, states), outputs), curvatures), partial))| {
+                let mut sum = 0.0;
+                for (j, (((fi, s), o), c)) in f
+                    .chunks_exact_mut(4)
+                    .zip(states.iter_mut())
+                    .zip(outputs.iter_mut())
+                    .zip(curvatures.iter_mut())
+                    .enumerate()
+                {
+                    let i = chunk * NODE_CHUNK + j;
+                    let node = nodes[i];
+                    let y = reference[i]
+                        + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
+                        - q * direction;
+                    let point: Option<SurfacePoint> = surface.closest(&y, offsets[i] + CULL_MARGIN);
+                    if point.is_none()
+                        && s.status == ContactStatus::Open
+                        && s.spring == Vector3::zeros()
+                    {
+                        s.previous_position = y;
+                        fi.fill(0.0);
+                        o.status = 0;
+                        o.normal_force = 0.0;
+                        o.friction_force = 0.0;
+                        continue;
+                    }
+                    match springs[i].update(s, &y, point.as_ref()) {
+                        Ok(r) => {
+                            fi[..3].copy_from_slice(r.residual.as_slice());
+                            fi[3] = 0.0;
+                            sum -= direction.dot(&r.residual);
+                            o.status = status_code(r.status);
+                            o.normal_force = r.normal_force;
+                            o.friction_force = r.tangential_force.norm();
+                            o.gap = r.gap;
+                            o.slip = s.slip_length;
+                            *c = point.map_or(0.0, |p| max_curvature(&p.hessian));
+                        }
+                        Err(_) => {
+                            first_failure.fetch_min(i, Ordering::Relaxed);
+                        }
+                    }
+                }
+                *partial = sum;
+            });
+        if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
+            return Err(self.failure(i, "the contact kernel rejected the state".into()));
+        }
+        let reaction = self.partials.iter().fold(0.0, |s, p| s + p);
+        tool_out[..3].fill(0.0);
+        tool_out[3] = reaction;
+        self.tool_force = reaction;
+        Ok(())
+    }
+
+    /// `max_n ω_n²` of the contact springs (with the tool's curvature and
+    /// the current forces, `docs/contact-kernels.md`), and for a floating
+    /// tool `Σ k_n / M` of its dof on all its springs.
+    fn frequency_bound(&self, _state: &State, masses: &Masses) -> Result<f64, TermFailure> {
+        if self.springs.is_empty() {
+            return Ok(0.0);
+        }
+        let mut max = 0.0_f64;
+        let mut sum_k = 0.0;
+        for i in 0..self.nodes.len() {
+            let spring = &self.springs[i];
+            let o = &self.outputs[i];
+            let penetration = if o.gap < 0.0 { -o.gap } else { 0.0 };
+            let w2 = spring
+                .frequency_squared(
+                    masses.node[self.nodes[i]],
+                    penetration,
+                    o.friction_force,
+                    self.curvatures[i],
+                )
+                .map_err(|e| self.failure(i, e.to_string()))?;
+            max = max.max(w2);
+            sum_k += spring.normal_stiffness().max(spring.tangential_stiffness());
+        }
+        let tool_mass = masses.extra[self.extra];
+        if tool_mass > 0.0 {
+            max = max.max(sum_k / tool_mass);
+        }
+        Ok(max)
+    }
+
+    fn energy(&mut self, _state: &State) -> Result<TermEnergy, TermFailure> {
+        if self.springs.is_empty() {
+            // Quasi-static: the normal potential and the committed friction
+            // work.
+            let contact = self
+                .responses
+                .iter()
+                .zip(&self.penalties)
+                .map(|(r, e)| 0.5 * r.normal_force * r.normal_force / e)
+                .sum();
+            return Ok(TermEnergy {
+                contact,
+                dissipated: self.dissipated,
+                ..Default::default()
+            });
+        }
+        let (contact, dissipated) = self.explicit.iter().fold((0.0, 0.0), |(e, d), s| {
+            (e + s.stored_energy(), d + s.dissipated)
+        });
+        Ok(TermEnergy {
+            contact,
+            dissipated,
+            ..Default::default()
+        })
+    }
+}
