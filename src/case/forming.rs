@@ -48,6 +48,8 @@ struct FormingRaw {
     boundary: Vec<BoundaryRaw>,
     #[serde(default)]
     load: Vec<LoadRaw>,
+    #[serde(default)]
+    probe: Vec<ProbeRaw>,
     gravity: Option<GravityRaw>,
     contact: Option<ContactRaw>,
     output: Option<OutputRaw>,
@@ -140,6 +142,13 @@ struct LoadRaw {
     nodes: Spanned<String>,
     force: Spanned<Vec<f64>>,
     amplitude: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProbeRaw {
+    ply: Option<String>,
+    nodes: Spanned<String>,
 }
 
 #[derive(Deserialize)]
@@ -356,6 +365,17 @@ pub struct LoadSpec {
     pub line: usize,
 }
 
+/// A node set whose mean displacement is written to the history.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProbeSpec {
+    /// Ply index.
+    pub ply: usize,
+    /// Node set.
+    pub nodes: String,
+    /// Line in the case file.
+    pub line: usize,
+}
+
 /// Gravity.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GravitySpec {
@@ -414,6 +434,8 @@ pub struct FormingCase {
     pub boundaries: Vec<BoundarySpec>,
     /// Dead loads.
     pub loads: Vec<LoadSpec>,
+    /// Node sets whose mean displacement the history records.
+    pub probes: Vec<ProbeSpec>,
     /// Gravity, if on.
     pub gravity: Option<GravitySpec>,
     /// Contact settings.
@@ -745,6 +767,15 @@ impl FormingCase {
             });
         }
 
+        let mut probes = Vec::new();
+        for (i, p) in raw.probe.iter().enumerate() {
+            probes.push(ProbeSpec {
+                ply: ply_index(&p.ply, &format!("probe[{i}].ply"))?,
+                nodes: p.nodes.get_ref().clone(),
+                line: check.line_of(&p.nodes),
+            });
+        }
+
         let mut contact = ContactSettings::default();
         if let Some(c) = &raw.contact {
             if let Some(v) = &c.offset {
@@ -830,6 +861,7 @@ impl FormingCase {
             tools,
             boundaries,
             loads,
+            probes,
             gravity,
             contact,
             solver_kind,

@@ -172,6 +172,8 @@ pub struct FormingModel {
     pub nodes: Vec<Vector3<f64>>,
     /// Per boundary condition of the case: its model nodes.
     pub boundary_nodes: Vec<Vec<usize>>,
+    /// Per probe of the case: its model nodes.
+    pub probe_nodes: Vec<Vec<usize>>,
 }
 
 impl FormingModel {
@@ -353,6 +355,15 @@ impl FormingCase {
             boundary_nodes.push(global);
         }
 
+        let mut probe_nodes = Vec::new();
+        for p in &self.probes {
+            let ply = &plies[p.ply];
+            let set = ply.mesh.node_set(&p.nodes).map_err(|e| {
+                format!("{}:{}: probe on ply \"{}\": {e}", self.source, p.line, ply.name)
+            })?;
+            probe_nodes.push(set.iter().map(|n| n + ply.node_offset).collect());
+        }
+
         // Gravity from each ply's areal mass, at its nodes.
         if let Some(g) = &self.gravity {
             let mut forces = Vec::new();
@@ -520,6 +531,7 @@ impl FormingCase {
             tools,
             nodes,
             boundary_nodes,
+            probe_nodes,
         })
     }
 }

@@ -59,6 +59,8 @@ pub struct FormingRow {
     pub tools: Vec<ToolRow>,
     /// Per boundary condition: the total reaction force [N].
     pub reactions: Vec<[f64; 3]>,
+    /// Per probe: the mean displacement of its nodes [mm].
+    pub probes: Vec<[f64; 3]>,
     /// Newton iterations of the step (quasi-static).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
@@ -224,11 +226,26 @@ impl Sink<'_> {
                 r
             })
             .collect();
+        let probes = self
+            .built
+            .probe_nodes
+            .iter()
+            .map(|nodes| {
+                let mut mean = [0.0; 3];
+                for &n in nodes {
+                    for (k, m) in mean.iter_mut().enumerate() {
+                        *m += snapshot.u[3 * n + k];
+                    }
+                }
+                mean.map(|m| m / nodes.len().max(1) as f64)
+            })
+            .collect();
         FormingRow {
             load,
             time: None,
             tools,
             reactions,
+            probes,
             iterations: None,
             augmentations: None,
             max_penetration: None,
@@ -773,6 +790,15 @@ fn write_history(
             ));
         }
     }
+    for (i, p) in case.probes.iter().enumerate() {
+        for axis in ["x", "y", "z"] {
+            header.push(format!(
+                "probe {} ({}) displacement {axis} [mm]",
+                i + 1,
+                p.nodes
+            ));
+        }
+    }
     for h in [
         "iterations [-]",
         "augmentations [-]",
@@ -793,6 +819,9 @@ fn write_history(
             }
             for r in &h.reactions {
                 row.extend(r);
+            }
+            for p in &h.probes {
+                row.extend(p);
             }
             let (closed, slipping) = h.contacts.unwrap_or((0, 0));
             row.extend([
