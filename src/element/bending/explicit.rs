@@ -155,6 +155,8 @@ pub struct BendingPass {
     elements: Vec<BendingElement>,
     nodes: Vec<Vector3<f64>>,
     element_count: usize,
+    /// Use the AVX2 path where the CPU has it.
+    simd: bool,
 }
 
 impl BendingPass {
@@ -283,7 +285,20 @@ impl BendingPass {
             elements: elements.to_vec(),
             nodes: nodes.to_vec(),
             element_count: count,
+            simd: true,
         })
+    }
+
+    /// With `enabled = false` the phases run lane by lane without SIMD (the
+    /// same expressions; for comparisons and tests). On by default.
+    pub fn with_simd(mut self, enabled: bool) -> Self {
+        self.simd = enabled;
+        self
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn simd_token(&self) -> Option<pulp::x86::V3> {
+        if self.simd { pulp::x86::V3::try_new() } else { None }
     }
 
     /// Number of elements.
@@ -328,7 +343,7 @@ impl BendingPass {
     pub fn geometry(&self, first: usize, u: &[f64], geometry: &mut [GeometryBatch]) {
         let batches = &self.batches[first..first + geometry.len()];
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new() {
+        if let Some(simd) = self.simd_token() {
             let pass = Avx2Geometry {
                 simd,
                 batches,
@@ -390,7 +405,7 @@ impl BendingPass {
         let failed;
         #[cfg(target_arch = "x86_64")]
         {
-            if let Some(simd) = pulp::x86::V3::try_new() {
+            if let Some(simd) = self.simd_token() {
                 let pass = Avx2Moments {
                     simd,
                     batches,
@@ -434,7 +449,7 @@ impl BendingPass {
         let own = &geometry[first..first + count];
         let own_hinges = &hinges[first..first + count];
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new() {
+        if let Some(simd) = self.simd_token() {
             let pass = Avx2HingeForces {
                 simd,
                 batches,
