@@ -12,6 +12,9 @@
 //! ratio of coordinate size to element size, which is how position
 //! rounding enters angles and normals), or from the discretisation order.
 
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::{DMatrix, Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -36,7 +39,9 @@ fn random_rotation(rng: &mut StdRng) -> Matrix3<f64> {
         let n2: f64 = q.iter().map(|v| v * v).sum();
         if n2 > 1e-2 && n2 <= 1.0 {
             let q = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
-            return *nalgebra::UnitQuaternion::from_quaternion(q).to_rotation_matrix().matrix();
+            return *nalgebra::UnitQuaternion::from_quaternion(q)
+                .to_rotation_matrix()
+                .matrix();
         }
     }
 }
@@ -91,7 +96,11 @@ fn random_stencil(rng: &mut StdRng, curved: bool, kinds: Option<[HingeKind; 3]>)
     let reference = local3.map(|p| origin + frame * p);
     let normal = frame.column(2).into_owned();
     let fibre = loop {
-        let f = V3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let f = V3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
         if f.norm() > 0.2 && (f.normalize().dot(&normal)).abs() < 0.9 {
             break f.normalize();
         }
@@ -207,17 +216,31 @@ fn force_and_tangent_match_finite_differences() {
         for dof in 0..18 {
             let fd = |step: f64| {
                 let wp = element.energy(&perturb(&x, dof, step), &d).expect("energy");
-                let wm = element.energy(&perturb(&x, dof, -step), &d).expect("energy");
+                let wm = element
+                    .energy(&perturb(&x, dof, -step), &d)
+                    .expect("energy");
                 (wp - wm) / (2.0 * step)
             };
             let (fd1, fd2) = (fd(h), fd(2.0 * h));
-            let gradient_l1: f64 = tangent.force.iter().map(|v| v.abs()).sum::<f64>().max(fd1.abs());
+            let gradient_l1: f64 = tangent
+                .force
+                .iter()
+                .map(|v| v.abs())
+                .sum::<f64>()
+                .max(fd1.abs());
             let round_off = 16.0 * EPS * (tangent.energy.abs() + gradient_l1 * scale_x);
             let tolerance = (fd2 - fd1).abs() + 4.0 * round_off / h;
             let error = (fd1 - tangent.force[dof]).abs();
             if error > tolerance {
                 let c = element.curvature(&x).expect("c");
-                eprintln!("kinds {:?} theta_hat {:?} K {:?} fd(h) {fd1} fd(2h) {fd2} fd(h/2) {} fd(h/4) {}", s.kinds, c.hinge_measures, c.curvature, fd(0.5*h), fd(0.25*h));
+                eprintln!(
+                    "kinds {:?} theta_hat {:?} K {:?} fd(h) {fd1} fd(2h) {fd2} fd(h/2) {} fd(h/4) {}",
+                    s.kinds,
+                    c.hinge_measures,
+                    c.curvature,
+                    fd(0.5 * h),
+                    fd(0.25 * h)
+                );
             }
             assert!(
                 error <= tolerance,
@@ -227,13 +250,23 @@ fn force_and_tangent_match_finite_differences() {
             worst_force = worst_force.max(error / tolerance);
             // Tangent column: same construction on the force.
             let fdk = |step: f64| {
-                let fp = element.force(&perturb(&x, dof, step), &d).expect("force").force;
-                let fm = element.force(&perturb(&x, dof, -step), &d).expect("force").force;
+                let fp = element
+                    .force(&perturb(&x, dof, step), &d)
+                    .expect("force")
+                    .force;
+                let fm = element
+                    .force(&perturb(&x, dof, -step), &d)
+                    .expect("force")
+                    .force;
                 (fp - fm) / (2.0 * step)
             };
             let (c1, c2) = (fdk(h), fdk(2.0 * h));
             let column = tangent.stiffness.column(dof);
-            let column_l1: f64 = column.iter().map(|v| v.abs()).sum::<f64>().max(c1.lp_norm(1));
+            let column_l1: f64 = column
+                .iter()
+                .map(|v| v.abs())
+                .sum::<f64>()
+                .max(c1.lp_norm(1));
             let round_off = 16.0 * EPS * (tangent.force.amax() + column_l1 * scale_x);
             let tolerance = (c2 - c1).amax() + 4.0 * round_off / h;
             let error = (c1 - column).amax();
@@ -250,7 +283,10 @@ fn force_and_tangent_match_finite_differences() {
         let kappa = scale_x / s.size;
         let asymmetry = (k - k.transpose()).amax();
         let tolerance = 256.0 * EPS * kappa * k.amax();
-        assert!(asymmetry <= tolerance, "asymmetry {asymmetry:e} > {tolerance:e}");
+        assert!(
+            asymmetry <= tolerance,
+            "asymmetry {asymmetry:e} > {tolerance:e}"
+        );
         worst_symmetry = worst_symmetry.max(asymmetry / tolerance);
         // Ignored slots have zero rows and columns.
         for i in 0..3 {
@@ -297,7 +333,10 @@ fn rigid_motions_give_no_force_and_keep_the_energy() {
         }
         let tolerance = 32.0 * EPS * kappa * fl1;
         assert!(sum.amax() <= tolerance, "Σf = {sum:?}");
-        assert!(moment.amax() <= tolerance * max_abs(&x).max(1.0), "Σx×f = {moment:?}");
+        assert!(
+            moment.amax() <= tolerance * max_abs(&x).max(1.0),
+            "Σx×f = {moment:?}"
+        );
         worst[0] = worst[0].max(sum.amax() / tolerance);
         // Rigid motion of the state: same energy to round-off of W
         // (16 ε κ (|W| + ‖f‖₁ s)).
@@ -321,10 +360,17 @@ fn rigid_motions_give_no_force_and_keep_the_energy() {
         let per_unit = f.force.amax() / dk_norm;
         let kappa_rigid = (max_abs(&rigid) + s.size) / s.size;
         let tolerance = per_unit * 256.0 * EPS * kappa_rigid / s.size;
-        assert!(f0.force.amax() <= tolerance, "rigid force {:e} > {tolerance:e}", f0.force.amax());
+        assert!(
+            f0.force.amax() <= tolerance,
+            "rigid force {:e} > {tolerance:e}",
+            f0.force.amax()
+        );
         worst[2] = worst[2].max(f0.force.amax() / tolerance);
     }
-    eprintln!("worst error/tolerance: Σf {:.3}, W {:.3}, rigid f {:.3}", worst[0], worst[1], worst[2]);
+    eprintln!(
+        "worst error/tolerance: Σf {:.3}, W {:.3}, rigid f {:.3}",
+        worst[0], worst[1], worst[2]
+    );
 }
 
 /// A structured grid of `nx × ny` cells of `dx × dy` mm in the xy-plane,
@@ -465,7 +511,10 @@ fn fitted_order(points: &[(f64, f64)]) -> f64 {
         .iter()
         .map(|(h, e)| (h.ln() - mx) * (e.ln() - my))
         .sum::<f64>()
-        / points.iter().map(|(h, _)| (h.ln() - mx).powi(2)).sum::<f64>()
+        / points
+            .iter()
+            .map(|(h, _)| (h.ln() - mx).powi(2))
+            .sum::<f64>()
 }
 
 /// Convergence on a sphere (docs/bending.md, "Accuracy"): a structured
@@ -589,7 +638,12 @@ fn curvature_is_the_pull_back_of_the_shape_operator() {
         let tolerance = 64.0 * EPS * kappa * scale.max(f64::MIN_POSITIVE);
         for v in 0..3 {
             let error = (voigt[v] - out.curvature[v]).abs();
-            assert!(error <= tolerance, "K[{v}] {} vs pull-back {}", out.curvature[v], voigt[v]);
+            assert!(
+                error <= tolerance,
+                "K[{v}] {} vs pull-back {}",
+                out.curvature[v],
+                voigt[v]
+            );
             worst = worst.max(error / tolerance);
         }
     }
@@ -693,7 +747,11 @@ fn clamped_edge_fixes_the_rotation_and_free_edge_does_not() {
     let elements = build_elements(&nodes, &topology, &kinds, &fibre);
     let free_elements = build_elements(&nodes, &topology, &free_kinds, &fibre);
     assert_eq!(
-        kinds.iter().flatten().filter(|k| **k == HingeKind::Clamped).count(),
+        kinds
+            .iter()
+            .flatten()
+            .filter(|k| **k == HingeKind::Clamped)
+            .count(),
         nx
     );
     for &psi in &[0.3, -1.0, 2.0] {
@@ -752,11 +810,7 @@ fn assembled_forces(
 
 /// A small mesh with interior, free and clamped edges, bent onto a
 /// cylinder with a random perturbation, and its displacements.
-fn bent_mesh(
-    rng: &mut StdRng,
-    nx: usize,
-    ny: usize,
-) -> (Vec<V3>, Vec<[usize; 3]>, Vec<f64>) {
+fn bent_mesh(rng: &mut StdRng, nx: usize, ny: usize) -> (Vec<V3>, Vec<[usize; 3]>, Vec<f64>) {
     let (mut nodes, triangles) = grid(nx, ny, 2.5, 2.0);
     // A curved reference for some cases: a gentle paraboloid.
     for p in &mut nodes {
@@ -803,7 +857,8 @@ fn explicit_phases_equal_the_reference_forces() {
             let mut scratch = pass.scratch();
             let offset = 0.25;
             let mut forces = vec![[offset; 9]; triangles.len()];
-            pass.add_forces(&u, &mut scratch, &mut forces).expect("forces");
+            pass.add_forces(&u, &mut scratch, &mut forces)
+                .expect("forces");
             let mut summed = vec![0.0; 3 * nodes.len()];
             for (e, tri) in triangles.iter().enumerate() {
                 for k in 0..3 {
@@ -849,7 +904,9 @@ fn frequency_bound_bounds_the_dense_eigenvalues() {
         let element = BendingElement::new(&s.reference, s.kinds, &s.fibre).expect("element");
         let x = random_state(&mut rng, &s);
         let masses: [f64; 6] = std::array::from_fn(|_| rng.random_range(0.5e-9..2.0e-9));
-        let bound = element.max_frequency_squared(&x, &d, &masses).expect("bound");
+        let bound = element
+            .max_frequency_squared(&x, &d, &masses)
+            .expect("bound");
         let k = element.force_tangent(&x, &d).expect("tangent").stiffness;
         let used: Vec<usize> = (0..18)
             .filter(|dof| dof / 3 < 3 || s.kinds[dof / 3 - 3] == HingeKind::Neighbour)
@@ -870,9 +927,16 @@ fn frequency_bound_bounds_the_dense_eigenvalues() {
     }
     ratios.sort_by(f64::total_cmp);
     let median = ratios[ratios.len() / 2];
-    eprintln!("p90 {:.3} p99 {:.3}", ratios[ratios.len() * 9 / 10], ratios[ratios.len() * 99 / 100]);
+    eprintln!(
+        "p90 {:.3} p99 {:.3}",
+        ratios[ratios.len() * 9 / 10],
+        ratios[ratios.len() * 99 / 100]
+    );
     let worst = *ratios.last().expect("ratios");
-    eprintln!("bound/exact: median {median:.3}, max {worst:.3}, min {:.3}", ratios[0]);
+    eprintln!(
+        "bound/exact: median {median:.3}, max {worst:.3}, min {:.3}",
+        ratios[0]
+    );
     assert!(worst <= 50.0, "bound too loose: {worst}");
 
     // Assembled: a small mesh with all hinge kinds.
@@ -889,7 +953,9 @@ fn frequency_bound_bounds_the_dense_eigenvalues() {
             .enumerate()
             .map(|(n, p)| p + V3::new(u[3 * n], u[3 * n + 1], u[3 * n + 2]))
             .collect();
-        let node_mass: Vec<f64> = (0..nodes.len()).map(|_| rng.random_range(1e-9..3e-9)).collect();
+        let node_mass: Vec<f64> = (0..nodes.len())
+            .map(|_| rng.random_range(1e-9..3e-9))
+            .collect();
         let counts = topology.stencil_counts();
         let dofs = 3 * nodes.len();
         let mut k = DMatrix::<f64>::zeros(dofs, dofs);
@@ -901,8 +967,11 @@ fn frequency_bound_bounds_the_dense_eigenvalues() {
             let masses: [f64; 6] = std::array::from_fn(|s| {
                 stencil[s].map_or(1.0, |n| node_mass[n] / counts[n] as f64)
             });
-            largest_bound =
-                largest_bound.max(element.max_frequency_squared(&xe, &d, &masses).expect("bound"));
+            largest_bound = largest_bound.max(
+                element
+                    .max_frequency_squared(&xe, &d, &masses)
+                    .expect("bound"),
+            );
             for (a, na) in stencil.iter().enumerate() {
                 for (b, nb) in stencil.iter().enumerate() {
                     if let (Some(na), Some(nb)) = (na, nb) {
@@ -921,8 +990,14 @@ fn frequency_bound_bounds_the_dense_eigenvalues() {
         let exact = SymmetricEigen::new((&scaled + scaled.transpose()) * 0.5)
             .eigenvalues
             .max();
-        eprintln!("assembled: bound {largest_bound:e}, exact {exact:e}, ratio {:.3}", largest_bound / exact);
-        assert!(largest_bound >= exact * (1.0 - 1e-12), "assembled bound {largest_bound:e} < {exact:e}");
+        eprintln!(
+            "assembled: bound {largest_bound:e}, exact {exact:e}, ratio {:.3}",
+            largest_bound / exact
+        );
+        assert!(
+            largest_bound >= exact * (1.0 - 1e-12),
+            "assembled bound {largest_bound:e} < {exact:e}"
+        );
     }
 }
 
@@ -965,8 +1040,12 @@ fn bad_input_gives_documented_errors() {
         Err(BendingError::NonFinite { slot: 4 })
     ));
     assert!(
-        BendingElement::new(&nan, [HingeKind::Neighbour, HingeKind::Free, HingeKind::Neighbour], &V3::x())
-            .is_ok()
+        BendingElement::new(
+            &nan,
+            [HingeKind::Neighbour, HingeKind::Free, HingeKind::Neighbour],
+            &V3::x()
+        )
+        .is_ok()
     );
     // Completely folded hinge in the current state: the partner of edge 2
     // turned onto the own triangle.
@@ -995,27 +1074,46 @@ fn bad_input_gives_documented_errors() {
     // repeated nodes, mask length.
     let fan = [[0, 1, 2], [1, 0, 3], [0, 1, 4]];
     match BendingTopology::new(&fan, 5) {
-        Err(TopologyError::NonManifold { a: 0, b: 1, triangles }) => {
+        Err(TopologyError::NonManifold {
+            a: 0,
+            b: 1,
+            triangles,
+        }) => {
             assert_eq!(triangles.len(), 3)
         }
         other => panic!("expected NonManifold, got {other:?}"),
     }
     assert!(matches!(
         BendingTopology::new(&[[0, 1, 2], [0, 1, 3]], 4),
-        Err(TopologyError::InconsistentOrientation { first: 0, second: 1, a: 0, b: 1 })
+        Err(TopologyError::InconsistentOrientation {
+            first: 0,
+            second: 1,
+            a: 0,
+            b: 1
+        })
     ));
     assert!(matches!(
         BendingTopology::new(&[[0, 1, 7]], 4),
-        Err(TopologyError::UnknownNode { triangle: 0, node: 7, .. })
+        Err(TopologyError::UnknownNode {
+            triangle: 0,
+            node: 7,
+            ..
+        })
     ));
     assert!(matches!(
         BendingTopology::new(&[[0, 1, 1]], 4),
-        Err(TopologyError::RepeatedNode { triangle: 0, node: 1 })
+        Err(TopologyError::RepeatedNode {
+            triangle: 0,
+            node: 1
+        })
     ));
     let topology = BendingTopology::new(&[[0, 1, 2], [1, 0, 3]], 4).expect("topology");
     assert!(matches!(
         topology.hinge_kinds(&[true; 3]),
-        Err(TopologyError::MaskLength { found: 3, expected: 4 })
+        Err(TopologyError::MaskLength {
+            found: 3,
+            expected: 4
+        })
     ));
     // The pass rejects elements whose kinds do not match the topology.
     let nodes = [flat[0], flat[1], flat[2], flat[5]];
@@ -1025,7 +1123,10 @@ fn bad_input_gives_documented_errors() {
     wrong[0].kinds = [HingeKind::Free; 3];
     assert!(matches!(
         BendingPass::new(&nodes, &topology, &wrong, &stiffness()),
-        Err(TopologyError::KindMismatch { triangle: 0, edge: 2 })
+        Err(TopologyError::KindMismatch {
+            triangle: 0,
+            edge: 2
+        })
     ));
     // The pass names the first element with a folded hinge.
     let pass = BendingPass::new(&nodes, &topology, &elements, &stiffness()).expect("pass");
@@ -1035,7 +1136,9 @@ fn bad_input_gives_documented_errors() {
     let mut u = vec![0.0; 12];
     u[9] = 0.3 - 1.0;
     u[10] = 0.7 + 1.0;
-    let failure = pass.add_forces(&u, &mut scratch, &mut forces).expect_err("folded");
+    let failure = pass
+        .add_forces(&u, &mut scratch, &mut forces)
+        .expect_err("folded");
     assert_eq!(failure.element, 0);
 }
 

@@ -10,6 +10,9 @@
 //! curvature `K = Σ_i φ_i c_i` (Voigt `[K11, K22, 2K12]` in the reference
 //! fibre basis), `ΔK = K − K0`, energy `W = A0 ½ ΔKᵀ D ΔK`.
 
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::{Matrix3, Vector3};
 
 use super::{
@@ -199,7 +202,7 @@ fn hinge_angle(own: &Triangle, i: usize, partner: &Triangle) -> (f64, f64) {
 /// `θ̂ = sin θ √(2/(1 + cos θ))` and `cos(θ/2) = √((1 + cos θ)/2)`.
 fn hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64), BendingError> {
     let one_plus_cos = 1.0 + cos;
-    if !(one_plus_cos > FOLD_LIMIT) {
+    if one_plus_cos.is_nan() || one_plus_cos <= FOLD_LIMIT {
         return Err(BendingError::FoldedHinge { edge, one_plus_cos });
     }
     let half_cos = (0.5 * one_plus_cos).sqrt();
@@ -249,11 +252,7 @@ impl BendingElement {
     /// # Errors
     /// A non-finite position, a degenerate triangle, a fibre perpendicular
     /// to it, a degenerate or completely folded hinge in the reference.
-    pub fn new(
-        x: &[V3; 6],
-        kinds: [HingeKind; 3],
-        fibre: &V3,
-    ) -> Result<Self, BendingError> {
+    pub fn new(x: &[V3; 6], kinds: [HingeKind; 3], fibre: &V3) -> Result<Self, BendingError> {
         check_finite(x, &kinds)?;
         let own = Triangle::new([x[0], x[1], x[2]]);
         if own.is_degenerate() {
@@ -265,7 +264,10 @@ impl BendingElement {
         let n0 = own.n;
         let projected = fibre - n0 * fibre.dot(&n0);
         let projected_norm = projected.norm();
-        if !(projected_norm > MIN_FIBRE_PROJECTION * fibre.norm()) || !fibre.norm().is_finite() {
+        if !fibre.norm().is_finite()
+            || projected_norm.is_nan()
+            || projected_norm <= MIN_FIBRE_PROJECTION * fibre.norm()
+        {
             return Err(BendingError::FibreOutOfPlane {
                 x: fibre.x,
                 y: fibre.y,
@@ -428,8 +430,8 @@ impl BendingElement {
         let unit_edge = s.own.e[i] / l;
         let scale = 1.0 / (2.0 * self.area * l);
         for m in 0..3 {
-            let g = s.own.n.cross(&s.own.e[m]) * scale
-                - unit_edge * (s.rho[i] * edge_sign(i, m) / l);
+            let g =
+                s.own.n.cross(&s.own.e[m]) * scale - unit_edge * (s.rho[i] * edge_sign(i, m) / l);
             grad_rho.fixed_rows_mut::<3>(3 * m).copy_from(&g);
         }
         (grad_theta, grad_rho)
@@ -512,8 +514,7 @@ impl BendingElement {
             let partner_jac = partner.hinge_jacobian(2);
             for a in 0..3 {
                 for b in 0..3 {
-                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b])
-                    {
+                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
                         add_block(&mut k, sa, sb, &partner_jac[a][b], theta_scale);
                     }
                 }
@@ -627,8 +628,7 @@ impl BendingElement {
             let partner_bounds = partner.hinge_jacobian_bounds(2);
             for a in 0..3 {
                 for b in 0..3 {
-                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b])
-                    {
+                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
                         blocks[sa][sb] += partner_bounds[a][b];
                     }
                 }

@@ -28,6 +28,9 @@
 //! caller may run each phase in parallel over chunks of batches with a
 //! barrier in between ([`BendingPass::add_forces`] does so with rayon).
 
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
@@ -57,8 +60,8 @@ struct ElementBatch {
     /// Element of the partner normal of each edge, `GHOST + g` for the ghost
     /// `g` of a clamped edge, the element itself for a free edge.
     partner_normal: [[u32; LANES]; 3],
-    /// `3 p + j` of the partner's moment on the shared edge; `NONE` for free
-    /// and clamped edges.
+    /// `4 p + j` of the partner's moment on the shared edge (in the flat
+    /// moments array); `NONE` for free and clamped edges.
     partner_moment: [[u32; LANES]; 3],
     /// 1 for an edge with a hinge, 0 for a free edge.
     active: [Lanes; 3],
@@ -130,6 +133,12 @@ pub struct BendingScratch {
     pub ghosts: Vec<GhostState>,
     /// Phase 2, one per batch.
     pub hinges: Vec<HingeBatch>,
+    /// Phase 1, one per element slot (`LANES` per batch): the unit normal,
+    /// compact for the partners' gathers (one cache line each).
+    pub normals: Vec<[f64; 4]>,
+    /// Phase 2, one per element slot: the moments `P_{e,i}`, compact for
+    /// the partners' gathers.
+    pub moments: Vec<[f64; 4]>,
 }
 
 /// The first element whose bending force could not be computed: a hinge
@@ -220,11 +229,9 @@ impl BendingPass {
         let d = stiffness.diagonal();
         let batch_count = count.div_ceil(LANES);
         let mut batches = Vec::with_capacity(batch_count);
-        let mut ghost_index = 0;
         let mut ghost_of = vec![[NONE; 3]; count];
-        for g in &ghosts {
-            ghost_of[g.element][g.edge] = ghost_index;
-            ghost_index += 1;
+        for (index, g) in ghosts.iter().enumerate() {
+            ghost_of[g.element][g.edge] = index as u32;
         }
         for b in 0..batch_count {
             let mut batch = ElementBatch {
@@ -257,7 +264,7 @@ impl BendingPass {
                     match (element.kinds[i], topology.partners[e][i]) {
                         (HingeKind::Neighbour, Some(p)) => {
                             batch.partner_normal[i][l] = p.triangle as u32;
-                            batch.partner_moment[i][l] = (3 * p.triangle + p.local) as u32;
+                            batch.partner_moment[i][l] = (4 * p.triangle + p.local) as u32;
                             batch.active[i][l] = 1.0;
                         }
                         (HingeKind::Clamped, _) => {
@@ -298,7 +305,11 @@ impl BendingPass {
 
     #[cfg(target_arch = "x86_64")]
     fn simd_token(&self) -> Option<pulp::x86::V3> {
-        if self.simd { pulp::x86::V3::try_new() } else { None }
+        if self.simd {
+            pulp::x86::V3::try_new()
+        } else {
+            None
+        }
     }
 
     /// Number of elements.
@@ -322,6 +333,8 @@ impl BendingPass {
             geometry: vec![GeometryBatch::default(); self.batches.len()],
             ghosts: vec![GhostState::default(); self.ghosts.len()],
             hinges: vec![HingeBatch::default(); self.batches.len()],
+            normals: vec![[0.0; 4]; self.batches.len() * LANES],
+            moments: vec![[0.0; 4]; self.batches.len() * LANES],
         }
     }
 
@@ -339,8 +352,15 @@ impl BendingPass {
 
     /// Phase 1 for the batches `first..first + geometry.len()`: own edges,
     /// `|N|`, `1/|N|` and the unit normal from the displacements `u` [mm]
-    /// (3 per node).
-    pub fn geometry(&self, first: usize, u: &[f64], geometry: &mut [GeometryBatch]) {
+    /// (3 per node); the normals also into `normals` (`LANES` slots per
+    /// batch).
+    pub fn geometry(
+        &self,
+        first: usize,
+        u: &[f64],
+        geometry: &mut [GeometryBatch],
+        normals: &mut [[f64; 4]],
+    ) {
         let batches = &self.batches[first..first + geometry.len()];
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = self.simd_token() {
@@ -348,14 +368,25 @@ impl BendingPass {
                 simd,
                 batches,
                 u,
-                geometry,
+                geometry: &mut *geometry,
             };
             <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
-            return;
+        } else {
+            for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
+                for l in 0..LANES {
+                    geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
+                }
+            }
         }
+        #[cfg(not(target_arch = "x86_64"))]
         for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
             for l in 0..LANES {
                 geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
+            }
+        }
+        for (geo, normals) in geometry.iter().zip(normals.chunks_exact_mut(LANES)) {
+            for (l, normal) in normals.iter_mut().enumerate() {
+                *normal = [geo.normal[0][l], geo.normal[1][l], geo.normal[2][l], 0.0];
             }
         }
     }
@@ -383,21 +414,24 @@ impl BendingPass {
     }
 
     /// Phase 2 for the batches `first..first + hinges.len()`: hinge measures
-    /// from the partners' normals (`geometry` and `ghosts` of all elements,
-    /// from phase 1), curvature, moments into `hinges`, and the forces of
-    /// the own energy on the own nodes added to `forces` (the slots of the
-    /// elements of these batches, `forces.len() = min(LANES·len, count −
-    /// LANES·first)`).
+    /// from the partners' normals (`geometry`, `normals` and `ghosts` of all
+    /// elements, from phase 1), curvature, moments into `hinges` and
+    /// `moments` (`LANES` slots per batch), and the forces of the own energy
+    /// on the own nodes added to `forces` (the slots of the elements of
+    /// these batches, `forces.len() = min(LANES·len, count − LANES·first)`).
     ///
     /// # Errors
     /// The first element of these batches with a folded hinge or a
     /// non-finite result.
+    #[allow(clippy::too_many_arguments)]
     pub fn moments(
         &self,
         first: usize,
         geometry: &[GeometryBatch],
+        normals: &[[f64; 4]],
         ghosts: &[GhostState],
         hinges: &mut [HingeBatch],
+        moments: &mut [[f64; 4]],
         forces: &mut [[f64; 9]],
     ) -> Result<(), BendingFailure> {
         let batches = &self.batches[first..first + hinges.len()];
@@ -410,19 +444,29 @@ impl BendingPass {
                     simd,
                     batches,
                     own,
-                    geometry,
+                    normals,
                     ghosts,
-                    hinges,
+                    hinges: &mut *hinges,
                     forces,
                 };
                 failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
             } else {
-                failed = moments_scalar(batches, own, geometry, ghosts, hinges, forces);
+                failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            failed = moments_scalar(batches, own, geometry, ghosts, hinges, forces);
+            failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
+        }
+        for (hinge, moments) in hinges.iter().zip(moments.chunks_exact_mut(LANES)) {
+            for (l, m) in moments.iter_mut().enumerate() {
+                *m = [
+                    hinge.moments[0][l],
+                    hinge.moments[1][l],
+                    hinge.moments[2][l],
+                    0.0,
+                ];
+            }
         }
         match failed {
             Some(offset) => Err(BendingFailure {
@@ -433,15 +477,16 @@ impl BendingPass {
     }
 
     /// Phase 3 for the batches `first..first + forces.len().div_ceil(LANES)`:
-    /// the partners' moments (`hinges` of all elements, from phase 2) on
-    /// the shared edges and the ghost-triangle terms of clamped edges, added
-    /// to `forces`.
+    /// the partners' moments (`hinges` and `moments` of all elements, from
+    /// phase 2) on the shared edges and the ghost-triangle terms of clamped
+    /// edges, added to `forces`.
     pub fn hinge_forces(
         &self,
         first: usize,
         geometry: &[GeometryBatch],
         ghosts: &[GhostState],
         hinges: &[HingeBatch],
+        moments: &[[f64; 4]],
         forces: &mut [[f64; 9]],
     ) {
         let count = forces.len().div_ceil(LANES);
@@ -455,22 +500,19 @@ impl BendingPass {
                 batches,
                 own,
                 own_hinges,
-                hinges,
+                moments,
                 forces: &mut *forces,
             };
             <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
             self.ghost_forces(first, ghosts, hinges, geometry, forces);
             return;
         }
-        for (b, (batch, (geo, hinge))) in batches
-            .iter()
-            .zip(own.iter().zip(own_hinges))
-            .enumerate()
+        for (b, (batch, (geo, hinge))) in batches.iter().zip(own.iter().zip(own_hinges)).enumerate()
         {
             let end = ((b + 1) * LANES).min(forces.len());
             let slots = &mut forces[b * LANES..end];
             for l in 0..slots.len() {
-                hinge_force_lanes::<f64, 1>(0.0, batch, geo, hinge, hinges, slots, l);
+                hinge_force_lanes::<f64, 1>(0.0, batch, geo, hinge, moments, slots, l);
             }
         }
         self.ghost_forces(first, ghosts, hinges, geometry, forces);
@@ -531,20 +573,31 @@ impl BendingPass {
         scratch
             .geometry
             .par_chunks_mut(chunk)
+            .zip(scratch.normals.par_chunks_mut(chunk * LANES))
             .enumerate()
-            .for_each(|(c, out)| self.geometry(c * chunk, u, out));
+            .for_each(|(c, (out, normals))| self.geometry(c * chunk, u, out, normals));
         self.ghost_normals(u, &mut scratch.ghosts);
         let geometry = &scratch.geometry;
+        let normals = &scratch.normals;
         let ghosts = &scratch.ghosts;
         let failure = scratch
             .hinges
             .par_chunks_mut(chunk)
+            .zip(scratch.moments.par_chunks_mut(chunk * LANES))
             .zip(forces.par_chunks_mut(chunk * LANES))
             .enumerate()
-            .map(|(c, (hinges, forces))| {
-                self.moments(c * chunk, geometry, ghosts, hinges, forces)
-                    .err()
-                    .map_or(usize::MAX, |f| f.element)
+            .map(|(c, ((hinges, moments), forces))| {
+                self.moments(
+                    c * chunk,
+                    geometry,
+                    normals,
+                    ghosts,
+                    hinges,
+                    moments,
+                    forces,
+                )
+                .err()
+                .map_or(usize::MAX, |f| f.element)
             })
             .min()
             .unwrap_or(usize::MAX);
@@ -552,10 +605,13 @@ impl BendingPass {
             return Err(BendingFailure { element: failure });
         }
         let hinges = &scratch.hinges;
+        let moments = &scratch.moments;
         forces
             .par_chunks_mut(chunk * LANES)
             .enumerate()
-            .for_each(|(c, forces)| self.hinge_forces(c * chunk, geometry, ghosts, hinges, forces));
+            .for_each(|(c, forces)| {
+                self.hinge_forces(c * chunk, geometry, ghosts, hinges, moments, forces)
+            });
         Ok(())
     }
 }
@@ -654,11 +710,12 @@ fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
 /// Phase 2 for lanes `off..off + W` of one batch; returns the lanes (bits)
 /// that failed.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     ctx: V,
     batch: &ElementBatch,
     own: &GeometryBatch,
-    geometry: &[GeometryBatch],
+    normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinge: &mut HingeBatch,
     forces: &mut [[f64; 9]],
@@ -689,9 +746,9 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         for w in 0..W {
             let p = batch.partner_normal[i][off + w];
             if p < GHOST {
-                let (pb, pl) = (p as usize / LANES, p as usize % LANES);
+                let normal = &normals[p as usize];
                 for c in 0..3 {
-                    partner[c][w] = geometry[pb].normal[c][pl];
+                    partner[c][w] = normal[c];
                 }
             } else {
                 let g = &ghosts[(p - GHOST) as usize];
@@ -765,8 +822,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     for k in 0..3 {
         let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
         for c in 0..3 {
-            f[k][c] = t[k] * n[c] - sigma * outward[k][c] + tau[k2] * e[k2][c]
-                - tau[k1] * e[k1][c];
+            f[k][c] = t[k] * n[c] - sigma * outward[k][c] + tau[k2] * e[k2][c] - tau[k1] * e[k1][c];
             total = total + f[k][c].abs();
         }
     }
@@ -778,14 +834,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         [f[1][0].store(), f[1][1].store(), f[1][2].store()],
         [f[2][0].store(), f[2][1].store(), f[2][2].store()],
     ];
-    for w in 0..lanes {
-        let slot = &mut forces[off + w];
-        for k in 0..3 {
-            for c in 0..3 {
-                slot[3 * k + c] += stored[k][c][w];
-            }
-        }
-    }
+    scatter_add(forces, off, &stored);
     // Padding lanes never fail.
     if lanes < W {
         failed &= (1u32 << lanes) - 1;
@@ -797,7 +846,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
 fn moments_scalar(
     batches: &[ElementBatch],
     own: &[GeometryBatch],
-    geometry: &[GeometryBatch],
+    normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinges: &mut [HingeBatch],
     forces: &mut [[f64; 9]],
@@ -808,9 +857,9 @@ fn moments_scalar(
         .enumerate()
     {
         let end = ((b + 1) * LANES).min(forces.len());
-            let slots = &mut forces[b * LANES..end];
+        let slots = &mut forces[b * LANES..end];
         for l in 0..LANES {
-            if moment_lanes::<f64, 1>(0.0, batch, geo, geometry, ghosts, hinge, slots, l) != 0 {
+            if moment_lanes::<f64, 1>(0.0, batch, geo, normals, ghosts, hinge, slots, l) != 0 {
                 return Some(b * LANES + l);
             }
         }
@@ -825,7 +874,7 @@ fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     batch: &ElementBatch,
     own: &GeometryBatch,
     hinge: &HingeBatch,
-    hinges: &[HingeBatch],
+    moments: &[[f64; 4]],
     forces: &mut [[f64; 9]],
     off: usize,
 ) {
@@ -836,8 +885,7 @@ fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         for (w, m) in moment.iter_mut().enumerate() {
             let p = batch.partner_moment[i][off + w];
             if p != NONE {
-                let (e, j) = (p as usize / 3, p as usize % 3);
-                *m = hinges[e / LANES].moments[j][e % LANES];
+                *m = moments[p as usize / 4][p as usize % 4];
             }
         }
         partner_moment[i] = ctx.load(moment);
@@ -860,16 +908,46 @@ fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         ld(ctx, &own.normal[1], off),
         ld(ctx, &own.normal[2], off),
     ];
-    let lanes = W.min(forces.len().saturating_sub(off));
-    for k in 0..3 {
-        let fk = [
-            (t[k] * n[0]).store(),
-            (t[k] * n[1]).store(),
-            (t[k] * n[2]).store(),
-        ];
-        for w in 0..lanes {
-            for c in 0..3 {
-                forces[off + w][3 * k + c] += fk[c][w];
+    let stored: [[[f64; W]; 3]; 3] = [
+        [
+            (t[0] * n[0]).store(),
+            (t[0] * n[1]).store(),
+            (t[0] * n[2]).store(),
+        ],
+        [
+            (t[1] * n[0]).store(),
+            (t[1] * n[1]).store(),
+            (t[1] * n[2]).store(),
+        ],
+        [
+            (t[2] * n[0]).store(),
+            (t[2] * n[1]).store(),
+            (t[2] * n[2]).store(),
+        ],
+    ];
+    scatter_add(forces, off, &stored);
+}
+
+/// Adds node-major lane forces `f[k][c][w]` to the slots `off..off + W`
+/// that exist (the last batch may be partial).
+#[inline(always)]
+fn scatter_add<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; W]; 3]; 3]) {
+    let start = off.min(forces.len());
+    let slots = &mut forces[start..];
+    if slots.len() >= W {
+        for (w, slot) in slots[..W].iter_mut().enumerate() {
+            for k in 0..3 {
+                for c in 0..3 {
+                    slot[3 * k + c] += f[k][c][w];
+                }
+            }
+        }
+    } else {
+        for (w, slot) in slots.iter_mut().enumerate() {
+            for k in 0..3 {
+                for c in 0..3 {
+                    slot[3 * k + c] += f[k][c][w];
+                }
             }
         }
     }
@@ -904,7 +982,7 @@ mod avx2 {
         pub simd: pulp::x86::V3,
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
-        pub geometry: &'a [GeometryBatch],
+        pub normals: &'a [[f64; 4]],
         pub ghosts: &'a [GhostState],
         pub hinges: &'a mut [HingeBatch],
         pub forces: &'a mut [[f64; 9]],
@@ -928,7 +1006,7 @@ mod avx2 {
                     ctx,
                     batch,
                     geo,
-                    self.geometry,
+                    self.normals,
                     self.ghosts,
                     hinge,
                     slots,
@@ -947,7 +1025,7 @@ mod avx2 {
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
         pub own_hinges: &'a [HingeBatch],
-        pub hinges: &'a [HingeBatch],
+        pub moments: &'a [[f64; 4]],
         pub forces: &'a mut [[f64; 9]],
     }
 
@@ -964,7 +1042,7 @@ mod avx2 {
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
                 let slots = &mut self.forces[b * LANES..end];
-                hinge_force_lanes::<F64x8, LANES>(ctx, batch, geo, hinge, self.hinges, slots, 0);
+                hinge_force_lanes::<F64x8, LANES>(ctx, batch, geo, hinge, self.moments, slots, 0);
             }
         }
     }

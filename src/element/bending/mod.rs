@@ -131,9 +131,7 @@ pub enum BendingError {
         area: f64,
     },
     /// The fibre direction has no component in the triangle's plane.
-    #[error(
-        "the fibre direction ({x}, {y}, {z}) is perpendicular to the triangle (or not finite)"
-    )]
+    #[error("the fibre direction ({x}, {y}, {z}) is perpendicular to the triangle (or not finite)")]
     FibreOutOfPlane {
         /// Global x component.
         x: f64,

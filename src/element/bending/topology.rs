@@ -3,6 +3,9 @@
 //! it; and the hinge kind of each edge (docs/bending.md, "Stencil and
 //! topology").
 
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
 use std::collections::HashMap;
 
 use super::HingeKind;
@@ -92,7 +95,9 @@ pub enum TopologyError {
         edge: usize,
     },
     /// Too many nodes or elements for 31-bit indices.
-    #[error("{elements} elements over {nodes} nodes: the explicit bending pass takes fewer than 2³¹ of each")]
+    #[error(
+        "{elements} elements over {nodes} nodes: the explicit bending pass takes fewer than 2³¹ of each"
+    )]
     TooLarge {
         /// Elements.
         elements: usize,
