@@ -76,6 +76,9 @@ fn element_cycles(criterion: &mut Criterion) {
         .expect("pool");
     let mut scratch = pass.scratch();
     let mut forces = vec![[0.0; 9]; count];
+    // Fill the scratch once, so that each phase alone reads a valid state.
+    pass.add_forces(&u, &mut scratch, &mut forces)
+        .expect("forces");
     let mut group = criterion.benchmark_group("bending_element_cycles");
     group.throughput(Throughput::Elements(count as u64));
     group.bench_function("all_phases_1_thread", |b| {

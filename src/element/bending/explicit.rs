@@ -39,10 +39,10 @@ use super::topology::BendingTopology;
 use super::{BendingStiffness, FOLD_LIMIT, HingeKind, TopologyError};
 use crate::material::lanes::Real;
 
-/// Elements per batch.
-pub const LANES: usize = 8;
+/// Elements per batch (one AVX2 register of `f64`).
+pub const LANES: usize = 4;
 /// Batches per parallel chunk in [`BendingPass::add_forces`].
-const CHUNK_BATCHES: usize = 32;
+const CHUNK_BATCHES: usize = 64;
 /// Partner index of a free edge (no normal, no moment).
 const NONE: u32 = u32::MAX;
 /// Partner normals at or above this index are ghosts (`index − GHOST`).
@@ -955,10 +955,11 @@ fn scatter_add<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; 
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    //! The phases entered through `pulp`'s x86-64-v3 token, eight lanes in
-    //! two AVX2 registers.
+    //! The phases entered through `pulp`'s x86-64-v3 token, four lanes in
+    //! one AVX2 register (eight lanes in two registers spilled more to the
+    //! stack and measured slower).
     use super::*;
-    use crate::material::lanes::x86::F64x8;
+    use crate::material::lanes::x86::F64x4;
 
     pub(super) struct Avx2Geometry<'a> {
         pub simd: pulp::x86::V3,
@@ -971,9 +972,9 @@ mod avx2 {
         type Output = ();
         #[inline(always)]
         fn with_simd<S: pulp::Simd>(self, _: S) {
-            let ctx = F64x8::new(self.simd, [0.0; LANES]);
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
             for (batch, out) in self.batches.iter().zip(self.geometry.iter_mut()) {
-                geometry_lanes::<F64x8, LANES>(ctx, batch, self.u, out, 0);
+                geometry_lanes::<F64x4, LANES>(ctx, batch, self.u, out, 0);
             }
         }
     }
@@ -992,7 +993,7 @@ mod avx2 {
         type Output = Option<usize>;
         #[inline(always)]
         fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
-            let ctx = F64x8::new(self.simd, [0.0; LANES]);
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
             let mut first_failure = None;
             for (b, (batch, (geo, hinge))) in self
                 .batches
@@ -1002,7 +1003,7 @@ mod avx2 {
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
                 let slots = &mut self.forces[b * LANES..end];
-                let failed = moment_lanes::<F64x8, LANES>(
+                let failed = moment_lanes::<F64x4, LANES>(
                     ctx,
                     batch,
                     geo,
@@ -1033,7 +1034,7 @@ mod avx2 {
         type Output = ();
         #[inline(always)]
         fn with_simd<S: pulp::Simd>(self, _: S) {
-            let ctx = F64x8::new(self.simd, [0.0; LANES]);
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
             for (b, (batch, (geo, hinge))) in self
                 .batches
                 .iter()
@@ -1042,7 +1043,7 @@ mod avx2 {
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
                 let slots = &mut self.forces[b * LANES..end];
-                hinge_force_lanes::<F64x8, LANES>(ctx, batch, geo, hinge, self.moments, slots, 0);
+                hinge_force_lanes::<F64x4, LANES>(ctx, batch, geo, hinge, self.moments, slots, 0);
             }
         }
     }
