@@ -2,10 +2,14 @@
 //! [`crate::material::MembraneMaterial`] and know nothing of a specific law,
 //! of meshes or of solvers; they allocate nothing and do no I/O.
 
+pub mod bending;
 pub mod fibre_batch;
 pub mod fibre_triangle;
 pub mod membrane;
 
+pub use bending::{
+    BendingElement, BendingError, BendingPass, BendingStiffness, BendingTopology, HingeKind,
+};
 pub use fibre_batch::FibreMesh;
 pub use fibre_triangle::FibreTriangle;
 pub use membrane::{MembraneKinematics, MembraneReference, MembraneTangent};

@@ -1,0 +1,718 @@
+//! Reference data of one bending element and its reference kernels:
+//! curvature, energy, force, exact tangent and a frequency bound
+//! (docs/bending.md, "Formulation", "Gradient and Hessian", "Frequency
+//! bound").
+//!
+//! Notation (own triangle, current positions `x_0, x_1, x_2`): edge vectors
+//! `e_k = x_{k+2} − x_{k+1}` (edge `k` is opposite node `k`, run
+//! counter-clockwise), `N = e_0 × e_1 = 2A n`, lengths `l_k = |e_k|`,
+//! `J = |N| / (2 A0)`, `ρ_i = J / l_i`, hinge measures `θ̂_i`, `φ_i = θ̂_i ρ_i`,
+//! curvature `K = Σ_i φ_i c_i` (Voigt `[K11, K22, 2K12]` in the reference
+//! fibre basis), `ΔK = K − K0`, energy `W = A0 ½ ΔKᵀ D ΔK`.
+
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::{
+    BendingError, BendingStiffness, DEGENERATE_AREA, FOLD_LIMIT, HingeKind, MIN_FIBRE_PROJECTION,
+    StencilMatrix, StencilVector,
+};
+
+type V3 = Vector3<f64>;
+type M3 = Matrix3<f64>;
+
+/// Reference data of one bending element (built once; 23 numbers and the
+/// hinge kinds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendingElement {
+    /// The kind of each edge `i` (opposite node `i`).
+    pub kinds: [HingeKind; 3],
+    /// `c_i = ℓ_i² / (2 A0) · Voigt(ν_i ⊗ ν_i)`, Voigt `[11, 22, 2·12]` in
+    /// the fibre basis `(a0, b0)`, `ν_i` the outward unit normal of edge
+    /// `i` in the reference plane [dimensionless] (docs/bending.md, Eq. (5)).
+    pub coefficients: [[f64; 3]; 3],
+    /// Reference curvature `K0` [1/mm], Voigt `[K11, K22, 2K12]`.
+    pub reference_curvature: [f64; 3],
+    /// Reference area `A0` [mm²].
+    pub area: f64,
+    /// The ghost vertex of each clamped edge [mm] (zero for other edges):
+    /// the mirror image of node `i` across the line of edge `i`.
+    pub ghosts: [[f64; 3]; 3],
+}
+
+/// Curvature of one element (docs/bending.md, Eq. (5)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendingCurvature {
+    /// `K` [1/mm], Voigt `[K11, K22, 2K12]` in the reference fibre basis.
+    pub curvature: [f64; 3],
+    /// `ΔK = K − K0` [1/mm], same storage.
+    pub change: [f64; 3],
+    /// The hinge measures `θ̂_i = 2 sin(θ_i/2)` (zero on free edges).
+    pub hinge_measures: [f64; 3],
+}
+
+/// Energy and internal force of one element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendingForce {
+    /// `W_e` [N·mm].
+    pub energy: f64,
+    /// `∂W_e/∂x` [N] over the six slots, node-major (ignored slots zero).
+    pub force: StencilVector,
+}
+
+/// Energy, internal force and exact tangent of one element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendingTangent {
+    /// `W_e` [N·mm].
+    pub energy: f64,
+    /// `∂W_e/∂x` [N], node-major over the six slots.
+    pub force: StencilVector,
+    /// `∂²W_e/∂x²` [N/mm], 18×18, symmetric to round-off; rows and columns
+    /// of ignored slots are zero.
+    pub stiffness: StencilMatrix,
+}
+
+/// `∂e_k/∂x_m = s(k, m) I` for `e_k = x_{k+2} − x_{k+1}`.
+#[inline]
+fn edge_sign(k: usize, m: usize) -> f64 {
+    if m == (k + 2) % 3 {
+        1.0
+    } else if m == (k + 1) % 3 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// One triangle's current geometry.
+#[derive(Debug, Clone, Copy)]
+struct Triangle {
+    /// `e_k = p_{k+2} − p_{k+1}`.
+    e: [V3; 3],
+    /// `N = e_0 × e_1` (twice the area times the unit normal).
+    big_n: V3,
+    /// `|N| = 2A`.
+    norm: f64,
+    /// Unit normal.
+    n: V3,
+}
+
+impl Triangle {
+    fn new(p: [V3; 3]) -> Self {
+        let e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]];
+        let big_n = e[0].cross(&e[1]);
+        let norm = big_n.norm();
+        Self {
+            e,
+            big_n,
+            norm,
+            n: big_n / norm,
+        }
+    }
+
+    /// Area is positive relative to the longest edge (docs/bending.md,
+    /// "Limits").
+    fn is_degenerate(&self) -> bool {
+        let longest = self.e.iter().map(|e| e.norm_squared()).fold(0.0, f64::max);
+        !(self.norm > DEGENERATE_AREA * longest && self.norm.is_finite())
+    }
+
+    /// This triangle's part of `∂θ/∂p_k` for the hinge at its edge `h`:
+    /// `G_k = (e_h·e_k)/l_h · N/|N|²` (docs/bending.md, Eq. (9)).
+    fn hinge_gradient(&self, h: usize) -> [V3; 3] {
+        let l = self.e[h].norm();
+        let q = self.big_n / (self.norm * self.norm);
+        std::array::from_fn(|k| q * (self.e[h].dot(&self.e[k]) / l))
+    }
+
+    /// `∂G_k/∂p_m` (docs/bending.md, Eq. (12)):
+    /// `q ⊗ ∂w_k/∂p_m + w_k (I − 2nnᵀ)[e_m]× / |N|²`, `q = N/|N|²`,
+    /// `w_k = e_h·e_k / l_h`.
+    fn hinge_jacobian(&self, h: usize) -> [[M3; 3]; 3] {
+        let eh = self.e[h];
+        let l = eh.norm();
+        let n2 = self.norm * self.norm;
+        let q = self.big_n / n2;
+        let reflect = M3::identity() - 2.0 * self.n * self.n.transpose();
+        std::array::from_fn(|k| {
+            let w = eh.dot(&self.e[k]) / l;
+            std::array::from_fn(|m| {
+                let (shm, skm) = (edge_sign(h, m), edge_sign(k, m));
+                let dw = (self.e[k] * shm + eh * skm) / l - eh * (w * shm / (l * l));
+                q * dw.transpose() + reflect * self.e[m].cross_matrix() * (w / n2)
+            })
+        })
+    }
+
+    /// Block norms bounding `‖∂G_k/∂p_m‖₂` (for the frequency bound).
+    fn hinge_jacobian_bounds(&self, h: usize) -> [[f64; 3]; 3] {
+        let eh = self.e[h];
+        let l = eh.norm();
+        let n2 = self.norm * self.norm;
+        std::array::from_fn(|k| {
+            let w = eh.dot(&self.e[k]) / l;
+            std::array::from_fn(|m| {
+                let (shm, skm) = (edge_sign(h, m), edge_sign(k, m));
+                let dw = (self.e[k] * shm + eh * skm) / l - eh * (w * shm / (l * l));
+                dw.norm() / self.norm + w.abs() * self.e[m].norm() / n2
+            })
+        })
+    }
+}
+
+/// The hinge of one edge in the current state.
+#[derive(Debug, Clone, Copy)]
+struct Hinge {
+    /// The partner (neighbour or ghost) triangle `(x_{i+2}, x_{i+1}, x_{3+i})`,
+    /// `None` for a free edge.
+    partner: Option<Triangle>,
+    /// Stencil slots of the partner triangle's nodes (`None`: the ghost).
+    partner_slots: [Option<usize>; 3],
+    /// `θ̂ = 2 sin(θ/2)`.
+    measure: f64,
+    /// `dθ̂/dθ = cos(θ/2)`.
+    half_cos: f64,
+}
+
+/// Everything the kernels share, at one state.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    own: Triangle,
+    hinges: [Hinge; 3],
+    lengths: [f64; 3],
+    /// `ρ_i = J / l_i`.
+    rho: [f64; 3],
+    curvature: [f64; 3],
+    change: [f64; 3],
+    /// `μ_i = ∂W/∂φ_i = A0 c_iᵀ D ΔK`.
+    mu: [f64; 3],
+    energy: f64,
+}
+
+/// The hinge angle's sine and cosine at edge `i` of `own` against the
+/// partner normal: `sin θ = (n' × n)·ê_i`, `cos θ = n·n'` (docs/bending.md,
+/// Eq. (1)); positive when the surface bends towards `+n`.
+fn hinge_angle(own: &Triangle, i: usize, partner: &Triangle) -> (f64, f64) {
+    let edge = own.e[i] / own.e[i].norm();
+    (partner.n.cross(&own.n).dot(&edge), own.n.dot(&partner.n))
+}
+
+/// `θ̂ = sin θ √(2/(1 + cos θ))` and `cos(θ/2) = √((1 + cos θ)/2)`.
+fn hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64), BendingError> {
+    let one_plus_cos = 1.0 + cos;
+    if one_plus_cos.is_nan() || one_plus_cos <= FOLD_LIMIT {
+        return Err(BendingError::FoldedHinge { edge, one_plus_cos });
+    }
+    let half_cos = (0.5 * one_plus_cos).sqrt();
+    Ok((sin / half_cos, half_cos))
+}
+
+/// Largest eigenvalue of a symmetric 3×3 matrix (trigonometric closed form:
+/// `q = tr m / 3`, `p² = ‖m − qI‖²_F / 6`, `λmax = q + 2p cos(acos(det B / 2)/3)`).
+fn largest_eigenvalue(m: &M3) -> f64 {
+    let q = m.trace() / 3.0;
+    let shifted = m - M3::identity() * q;
+    let p = (shifted.norm_squared() / 6.0).sqrt();
+    if p <= 1e-14 * q.abs() || p == 0.0 {
+        return q;
+    }
+    let half_det = (shifted / p).determinant() / 2.0;
+    let angle = half_det.clamp(-1.0, 1.0).acos() / 3.0;
+    q + 2.0 * p * angle.cos()
+}
+
+/// `‖v‖²_M = Σ_slots |v_slot|² / m_slot` over the slots in `slots`.
+fn mass_norm_squared(v: &StencilVector, masses: &[f64; 6], slots: &[bool; 6]) -> f64 {
+    let mut sum = 0.0;
+    for s in 0..6 {
+        if slots[s] {
+            sum += v.fixed_rows::<3>(3 * s).norm_squared() / masses[s];
+        }
+    }
+    sum
+}
+
+/// Adds `scale · block` at block `(a, b)`.
+#[inline]
+fn add_block(k: &mut StencilMatrix, a: usize, b: usize, block: &M3, scale: f64) {
+    let mut view = k.fixed_view_mut::<3, 3>(3 * a, 3 * b);
+    view += block * scale;
+}
+
+impl BendingElement {
+    /// Sets up an element from the reference positions of its six slots
+    /// [mm] (slots of free and clamped edges are not read), its hinge kinds
+    /// and a global fibre direction (projected on the triangle's plane and
+    /// normalised to give `a0`; `b0 = n0 × a0`). Clamped edges get their
+    /// ghost vertex; `K0` is the curvature of the reference geometry
+    /// (docs/bending.md, "Reference data").
+    ///
+    /// # Errors
+    /// A non-finite position, a degenerate triangle, a fibre perpendicular
+    /// to it, a degenerate or completely folded hinge in the reference.
+    pub fn new(x: &[V3; 6], kinds: [HingeKind; 3], fibre: &V3) -> Result<Self, BendingError> {
+        check_finite(x, &kinds)?;
+        let own = Triangle::new([x[0], x[1], x[2]]);
+        if own.is_degenerate() {
+            return Err(BendingError::Degenerate {
+                area: 0.5 * own.norm,
+            });
+        }
+        let area = 0.5 * own.norm;
+        let n0 = own.n;
+        let projected = fibre - n0 * fibre.dot(&n0);
+        let projected_norm = projected.norm();
+        if !fibre.norm().is_finite()
+            || projected_norm.is_nan()
+            || projected_norm <= MIN_FIBRE_PROJECTION * fibre.norm()
+        {
+            return Err(BendingError::FibreOutOfPlane {
+                x: fibre.x,
+                y: fibre.y,
+                z: fibre.z,
+            });
+        }
+        let a0 = projected / projected_norm;
+        let b0 = n0.cross(&a0);
+        let mut coefficients = [[0.0; 3]; 3];
+        let mut ghosts = [[0.0; 3]; 3];
+        for i in 0..3 {
+            let edge = own.e[i];
+            let length2 = edge.norm_squared();
+            // Outward unit normal of edge i in the reference plane: ê × n0.
+            let outward = edge.cross(&n0) / length2.sqrt();
+            let (v1, v2) = (outward.dot(&a0), outward.dot(&b0));
+            let scale = length2 / (2.0 * area);
+            coefficients[i] = [scale * v1 * v1, scale * v2 * v2, scale * 2.0 * v1 * v2];
+            if kinds[i] == HingeKind::Clamped {
+                // Mirror x_i across the line through x_{i+1} along e_i.
+                let start = x[(i + 1) % 3];
+                let along = edge * ((x[i] - start).dot(&edge) / length2);
+                let foot = start + along;
+                ghosts[i] = (2.0 * foot - x[i]).into();
+            }
+        }
+        let mut element = Self {
+            kinds,
+            coefficients,
+            reference_curvature: [0.0; 3],
+            area,
+            ghosts,
+        };
+        let reference = element.state(x, &BendingStiffness::new(0.0, 0.0, 0.0)?)?;
+        element.reference_curvature = reference.curvature;
+        Ok(element)
+    }
+
+    /// The partner triangle of edge `i` and the slots of its nodes.
+    fn partner(&self, x: &[V3; 6], i: usize) -> Option<(Triangle, [Option<usize>; 3])> {
+        let (a, b) = ((i + 2) % 3, (i + 1) % 3);
+        match self.kinds[i] {
+            HingeKind::Free => None,
+            HingeKind::Neighbour => Some((
+                Triangle::new([x[a], x[b], x[3 + i]]),
+                [Some(a), Some(b), Some(3 + i)],
+            )),
+            HingeKind::Clamped => Some((
+                Triangle::new([x[a], x[b], V3::from(self.ghosts[i])]),
+                [Some(a), Some(b), None],
+            )),
+        }
+    }
+
+    fn state(&self, x: &[V3; 6], stiffness: &BendingStiffness) -> Result<State, BendingError> {
+        check_finite(x, &self.kinds)?;
+        let own = Triangle::new([x[0], x[1], x[2]]);
+        if own.is_degenerate() {
+            return Err(BendingError::Degenerate {
+                area: 0.5 * own.norm,
+            });
+        }
+        let area_ratio = own.norm / (2.0 * self.area);
+        let lengths = own.e.map(|e| e.norm());
+        let mut hinges = [Hinge {
+            partner: None,
+            partner_slots: [None; 3],
+            measure: 0.0,
+            half_cos: 1.0,
+        }; 3];
+        let mut rho = [0.0; 3];
+        let mut phi = [0.0; 3];
+        for i in 0..3 {
+            rho[i] = area_ratio / lengths[i];
+            if let Some((partner, slots)) = self.partner(x, i) {
+                if partner.is_degenerate() {
+                    return Err(BendingError::DegenerateHinge {
+                        edge: i,
+                        area: 0.5 * partner.norm,
+                    });
+                }
+                let (sin, cos) = hinge_angle(&own, i, &partner);
+                let (measure, half_cos) = hinge_measure(i, sin, cos)?;
+                hinges[i] = Hinge {
+                    partner: Some(partner),
+                    partner_slots: slots,
+                    measure,
+                    half_cos,
+                };
+                phi[i] = measure * rho[i];
+            }
+        }
+        let mut curvature = [0.0; 3];
+        for (i, c) in self.coefficients.iter().enumerate() {
+            for v in 0..3 {
+                curvature[v] += phi[i] * c[v];
+            }
+        }
+        let d = stiffness.diagonal();
+        let change: [f64; 3] = std::array::from_fn(|v| curvature[v] - self.reference_curvature[v]);
+        let moment: [f64; 3] = std::array::from_fn(|v| self.area * d[v] * change[v]);
+        let mu = self
+            .coefficients
+            .map(|c| c[0] * moment[0] + c[1] * moment[1] + c[2] * moment[2]);
+        let energy = 0.5 * (0..3).map(|v| moment[v] * change[v]).sum::<f64>();
+        Ok(State {
+            own,
+            hinges,
+            lengths,
+            rho,
+            curvature,
+            change,
+            mu,
+            energy,
+        })
+    }
+
+    /// `K`, `ΔK` and the hinge measures at the current positions `x` [mm]
+    /// (docs/bending.md, Eq. (5)).
+    ///
+    /// # Errors
+    /// A non-finite position, a degenerate own or partner triangle, a
+    /// completely folded hinge.
+    pub fn curvature(&self, x: &[V3; 6]) -> Result<BendingCurvature, BendingError> {
+        let s = self.state(x, &BendingStiffness::new(0.0, 0.0, 0.0)?)?;
+        Ok(BendingCurvature {
+            curvature: s.curvature,
+            change: s.change,
+            hinge_measures: s.hinges.map(|h| h.measure),
+        })
+    }
+
+    /// `W_e = A0 ½ ΔKᵀ D ΔK` [N·mm] (docs/bending.md, Eq. (7)).
+    ///
+    /// # Errors
+    /// As [`BendingElement::curvature`].
+    pub fn energy(&self, x: &[V3; 6], stiffness: &BendingStiffness) -> Result<f64, BendingError> {
+        Ok(self.state(x, stiffness)?.energy)
+    }
+
+    /// `∂θ_i/∂x` (18 values) and `∂ρ_i/∂x` (own slots) of hinge `i`
+    /// (docs/bending.md, Eqs. (9)–(10)).
+    fn hinge_gradients(&self, s: &State, i: usize) -> (StencilVector, StencilVector) {
+        let mut grad_theta = StencilVector::zeros();
+        let mut grad_rho = StencilVector::zeros();
+        let hinge = &s.hinges[i];
+        if let Some(partner) = &hinge.partner {
+            for (k, g) in s.own.hinge_gradient(i).iter().enumerate() {
+                let mut row = grad_theta.fixed_rows_mut::<3>(3 * k);
+                row += g;
+            }
+            for (k, g) in partner.hinge_gradient(2).iter().enumerate() {
+                if let Some(slot) = hinge.partner_slots[k] {
+                    let mut row = grad_theta.fixed_rows_mut::<3>(3 * slot);
+                    row += g;
+                }
+            }
+        }
+        let l = s.lengths[i];
+        let unit_edge = s.own.e[i] / l;
+        let scale = 1.0 / (2.0 * self.area * l);
+        for m in 0..3 {
+            let g =
+                s.own.n.cross(&s.own.e[m]) * scale - unit_edge * (s.rho[i] * edge_sign(i, m) / l);
+            grad_rho.fixed_rows_mut::<3>(3 * m).copy_from(&g);
+        }
+        (grad_theta, grad_rho)
+    }
+
+    /// `∂φ_i/∂x = ρ_i cos(θ_i/2) ∂θ_i/∂x + θ̂_i ∂ρ_i/∂x` (Eq. (8)).
+    fn phi_gradient(s: &State, i: usize, grads: &(StencilVector, StencilVector)) -> StencilVector {
+        let h = &s.hinges[i];
+        if h.partner.is_none() {
+            return StencilVector::zeros();
+        }
+        grads.0 * (s.rho[i] * h.half_cos) + grads.1 * h.measure
+    }
+
+    /// Energy and internal force `∂W_e/∂x = Σ_i μ_i ∂φ_i/∂x` [N] at the
+    /// current positions `x` [mm] (docs/bending.md, Eq. (8)).
+    ///
+    /// # Errors
+    /// As [`BendingElement::curvature`].
+    pub fn force(
+        &self,
+        x: &[V3; 6],
+        stiffness: &BendingStiffness,
+    ) -> Result<BendingForce, BendingError> {
+        let s = self.state(x, stiffness)?;
+        let mut force = StencilVector::zeros();
+        for i in 0..3 {
+            let grads = self.hinge_gradients(&s, i);
+            force += Self::phi_gradient(&s, i, &grads) * s.mu[i];
+        }
+        Ok(BendingForce {
+            energy: s.energy,
+            force,
+        })
+    }
+
+    /// `H_ij = ∂²W/∂φ_i∂φ_j = A0 c_iᵀ D c_j`.
+    fn phi_hessian(&self, stiffness: &BendingStiffness) -> M3 {
+        let d = stiffness.diagonal();
+        let c = &self.coefficients;
+        M3::from_fn(|i, j| self.area * (0..3).map(|v| c[i][v] * d[v] * c[j][v]).sum::<f64>())
+    }
+
+    /// Energy, force and the exact tangent
+    /// `∂²W/∂x² = Σ_ij H_ij ∇φ_i ∇φ_jᵀ + Σ_i μ_i ∇²φ_i` [N/mm] with every term
+    /// of `∇²φ_i` (the hinge-angle Hessian, the area ratio and the edge
+    /// lengths; docs/bending.md, Eqs. (11)–(14)).
+    ///
+    /// # Errors
+    /// As [`BendingElement::curvature`].
+    pub fn force_tangent(
+        &self,
+        x: &[V3; 6],
+        stiffness: &BendingStiffness,
+    ) -> Result<BendingTangent, BendingError> {
+        let s = self.state(x, stiffness)?;
+        let h = self.phi_hessian(stiffness);
+        let mut force = StencilVector::zeros();
+        let mut k = StencilMatrix::zeros();
+        let mut grad_phi = [StencilVector::zeros(); 3];
+        for (i, gp) in grad_phi.iter_mut().enumerate() {
+            let grads = self.hinge_gradients(&s, i);
+            *gp = Self::phi_gradient(&s, i, &grads);
+            force += *gp * s.mu[i];
+            let hinge = &s.hinges[i];
+            let mu = s.mu[i];
+            let Some(partner) = &hinge.partner else {
+                continue;
+            };
+            let (grad_theta, grad_rho) = grads;
+            let (rho, measure, half_cos) = (s.rho[i], hinge.measure, hinge.half_cos);
+            // ρ ∇²θ̂ = ρ (cos(θ/2) ∇²θ − θ̂/4 ∇θ∇θᵀ).
+            let theta_scale = mu * rho * half_cos;
+            let own_jac = s.own.hinge_jacobian(i);
+            for a in 0..3 {
+                for b in 0..3 {
+                    add_block(&mut k, a, b, &own_jac[a][b], theta_scale);
+                }
+            }
+            let partner_jac = partner.hinge_jacobian(2);
+            for a in 0..3 {
+                for b in 0..3 {
+                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
+                        add_block(&mut k, sa, sb, &partner_jac[a][b], theta_scale);
+                    }
+                }
+            }
+            k -= grad_theta * grad_theta.transpose() * (mu * rho * 0.25 * measure);
+            // ∇θ̂ ∇ρᵀ + ∇ρ ∇θ̂ᵀ.
+            let cross = grad_theta * grad_rho.transpose() * (mu * half_cos);
+            k += cross + cross.transpose();
+            // θ̂ ∇²ρ.
+            let rho_hess = self.rho_hessian(&s, i);
+            for a in 0..3 {
+                for b in 0..3 {
+                    add_block(&mut k, a, b, &rho_hess[a][b], mu * measure);
+                }
+            }
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                if h[(i, j)] != 0.0 {
+                    k += grad_phi[i] * grad_phi[j].transpose() * h[(i, j)];
+                }
+            }
+        }
+        Ok(BendingTangent {
+            energy: s.energy,
+            force,
+            stiffness: k,
+        })
+    }
+
+    /// `∂²ρ_i/∂x_m∂x_p` over the own nodes (docs/bending.md, Eq. (13)).
+    fn rho_hessian(&self, s: &State, i: usize) -> [[M3; 3]; 3] {
+        let own = &s.own;
+        let l = s.lengths[i];
+        let unit_edge = own.e[i] / l;
+        let c0 = 1.0 / (2.0 * self.area);
+        let projector = M3::identity() - own.n * own.n.transpose();
+        let edge_projector = M3::identity() - unit_edge * unit_edge.transpose();
+        let grad_area: [V3; 3] = std::array::from_fn(|m| own.n.cross(&own.e[m]));
+        let grad_length: [V3; 3] = std::array::from_fn(|m| unit_edge * edge_sign(i, m));
+        std::array::from_fn(|m| {
+            std::array::from_fn(|p| {
+                let hess_area = -own.e[m].cross_matrix() * projector * own.e[p].cross_matrix()
+                    / own.norm
+                    + own.n.cross_matrix() * edge_sign(m, p);
+                let hess_length = edge_projector * (edge_sign(i, m) * edge_sign(i, p) / l);
+                (hess_area / l
+                    - (grad_area[m] * grad_length[p].transpose()
+                        + grad_length[m] * grad_area[p].transpose())
+                        / (l * l)
+                    + (grad_length[m] * grad_length[p].transpose() * (2.0 / (l * l * l))
+                        - hess_length / (l * l))
+                        * own.norm)
+                    * c0
+            })
+        })
+    }
+
+    /// An upper bound of `λmax(M⁻¹ K_e)` [1/s²] for the element tangent
+    /// `K_e` at `x` [mm] and lumped masses `masses` [t] of the six slots
+    /// (only the slots the element uses are read; they must be positive).
+    /// The Gauss–Newton part `Σ H_ij ∇φ_i∇φ_jᵀ` is taken exactly through a
+    /// 3×3 eigenvalue; the rest `Σ μ_i ∇²φ_i` is bounded by block norms
+    /// (docs/bending.md, "Frequency bound"). Where several stencils share a
+    /// node, give each the share `m_n / count_n`
+    /// ([`super::BendingTopology::stencil_counts`]): then the maximum over
+    /// elements bounds the assembled bending term.
+    ///
+    /// # Errors
+    /// As [`BendingElement::curvature`], and
+    /// [`BendingError::InvalidMass`] for a used slot whose mass is not
+    /// positive and finite.
+    pub fn max_frequency_squared(
+        &self,
+        x: &[V3; 6],
+        stiffness: &BendingStiffness,
+        masses: &[f64; 6],
+    ) -> Result<f64, BendingError> {
+        let s = self.state(x, stiffness)?;
+        let mut used = [true, true, true, false, false, false];
+        for i in 0..3 {
+            used[3 + i] = self.kinds[i] == HingeKind::Neighbour;
+        }
+        for slot in 0..6 {
+            if used[slot] && !(masses[slot] > 0.0 && masses[slot].is_finite()) {
+                return Err(BendingError::InvalidMass {
+                    slot,
+                    mass: masses[slot],
+                });
+            }
+        }
+        let mut grad_phi = [StencilVector::zeros(); 3];
+        let mut rest = 0.0;
+        for (i, gp) in grad_phi.iter_mut().enumerate() {
+            let grads = self.hinge_gradients(&s, i);
+            *gp = Self::phi_gradient(&s, i, &grads);
+            let hinge = &s.hinges[i];
+            let Some(partner) = &hinge.partner else {
+                continue;
+            };
+            let (grad_theta, grad_rho) = grads;
+            let (rho, measure, half_cos) = (s.rho[i], hinge.measure, hinge.half_cos);
+            // ‖∇²θ‖_M from block norms over the hinge's slots.
+            let mut blocks = [[0.0; 6]; 6];
+            let own_bounds = s.own.hinge_jacobian_bounds(i);
+            for a in 0..3 {
+                for b in 0..3 {
+                    blocks[a][b] += own_bounds[a][b];
+                }
+            }
+            let partner_bounds = partner.hinge_jacobian_bounds(2);
+            for a in 0..3 {
+                for b in 0..3 {
+                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
+                        blocks[sa][sb] += partner_bounds[a][b];
+                    }
+                }
+            }
+            let theta_norm = scaled_block_bound(&blocks, masses, &used);
+            let grad_theta_m2 = mass_norm_squared(&grad_theta, masses, &used);
+            let grad_rho_m = mass_norm_squared(&grad_rho, masses, &used).sqrt();
+            let rho_norm = self.rho_hessian_bound(&s, i, masses);
+            let bound = rho * half_cos * theta_norm
+                + rho * 0.25 * measure.abs() * grad_theta_m2
+                + measure.abs() * rho_norm
+                + 2.0 * half_cos * grad_theta_m2.sqrt() * grad_rho_m;
+            rest += s.mu[i].abs() * bound;
+        }
+        // Gauss–Newton part: A0 λmax(D^½ C G Cᵀ D^½), G = Φᵀ M⁻¹ Φ.
+        let g = M3::from_fn(|i, j| {
+            let mut sum = 0.0;
+            for slot in 0..6 {
+                if used[slot] {
+                    sum += grad_phi[i]
+                        .fixed_rows::<3>(3 * slot)
+                        .dot(&grad_phi[j].fixed_rows::<3>(3 * slot))
+                        / masses[slot];
+                }
+            }
+            sum
+        });
+        let c = M3::from_fn(|v, i| self.coefficients[i][v]);
+        let d = stiffness.diagonal();
+        let d_half = M3::from_diagonal(&V3::new(d[0].sqrt(), d[1].sqrt(), d[2].sqrt()));
+        let reduced = d_half * c * g * c.transpose() * d_half * self.area;
+        let gauss_newton = largest_eigenvalue(&(0.5 * (reduced + reduced.transpose()))).max(0.0);
+        Ok(gauss_newton + rest)
+    }
+
+    /// A bound of `‖M^{-½} ∇²ρ_i M^{-½}‖₂` from block norms of Eq. (13).
+    fn rho_hessian_bound(&self, s: &State, i: usize, masses: &[f64; 6]) -> f64 {
+        let own = &s.own;
+        let l = s.lengths[i];
+        let c0 = 1.0 / (2.0 * self.area);
+        let mut blocks = [[0.0; 6]; 6];
+        for (m, row) in blocks.iter_mut().enumerate().take(3) {
+            for (p, block) in row.iter_mut().enumerate().take(3) {
+                let (sm, sp) = (edge_sign(i, m).abs(), edge_sign(i, p).abs());
+                let (lm, lp) = (s.lengths[m], s.lengths[p]);
+                let area_block = lm * lp / own.norm + edge_sign(m, p).abs();
+                *block = c0
+                    * (area_block / l
+                        + (lm * sp + sm * lp) / (l * l)
+                        + own.norm * (2.0 * sm * sp / (l * l * l) + sm * sp / (l * l * l)));
+            }
+        }
+        let used = [true, true, true, false, false, false];
+        scaled_block_bound(&blocks, masses, &used)
+    }
+}
+
+/// `‖M^{-½} A M^{-½}‖₂ ≤ max_a Σ_b min(β_ab, β_ba)/√(m_a m_b)` for a
+/// symmetric `A` whose blocks satisfy `‖A_ab‖₂ ≤ β_ab` (the spectral radius
+/// of a non-negative matrix is at most its largest row sum).
+fn scaled_block_bound(blocks: &[[f64; 6]; 6], masses: &[f64; 6], used: &[bool; 6]) -> f64 {
+    let mut bound: f64 = 0.0;
+    for a in 0..6 {
+        if !used[a] {
+            continue;
+        }
+        let mut row = 0.0;
+        for b in 0..6 {
+            if used[b] {
+                row += blocks[a][b].min(blocks[b][a]) / (masses[a] * masses[b]).sqrt();
+            }
+        }
+        bound = bound.max(row);
+    }
+    bound
+}
+
+/// Rejects non-finite positions in the slots the element reads.
+fn check_finite(x: &[V3; 6], kinds: &[HingeKind; 3]) -> Result<(), BendingError> {
+    for (slot, p) in x.iter().enumerate() {
+        let used = slot < 3 || kinds[slot - 3] == HingeKind::Neighbour;
+        if used && !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+            return Err(BendingError::NonFinite { slot });
+        }
+    }
+    Ok(())
+}

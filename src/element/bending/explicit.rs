@@ -1,0 +1,1053 @@
+//! The bending force pass of the explicit solver: three phases, each a
+//! plain loop over element batches, in which every element writes forces
+//! only to its own three nodes, *adding* them to its force slot
+//! (docs/bending.md, "Explicit three-phase scheme").
+//!
+//! 1. [`BendingPass::geometry`]: per element, the current edges `e_0, e_1`,
+//!    `|N|`, `1/|N|` and the unit normal `n` from the own nodes (and
+//!    [`BendingPass::ghost_normals`], the normals of the ghost triangles of
+//!    clamped edges).
+//! 2. [`BendingPass::moments`]: per element, the hinge measures from the
+//!    partners' normals, `ΔK`, `μ_i = ∂W/∂φ_i`, the per-edge moments
+//!    `P_{e,i} = l_i ∂W_e/∂θ_i = μ_i J cos(θ_i/2)`, and the forces of
+//!    everything the element's own energy gives its own nodes: the area-ratio
+//!    and edge-length terms and its own moments' hinge terms.
+//! 3. [`BendingPass::hinge_forces`]: per element, the partners' moments on
+//!    the shared edges, `P_{p,j}`, and their hinge terms on the own nodes
+//!    (and the ghost-triangle terms of clamped edges).
+//!
+//! With `θ` depending on the positions only through the two unit normals,
+//! `∂θ_i/∂x_k = (e_i·e_k)/(l_i |N|) n` on the own nodes (Eq. (9)), so the
+//! hinge force of edge `i` on own node `k` is
+//! `(P_{e,i} + P_{p,j}) (e_i·e_k)/(l_i² |N|) n`.
+//!
+//! Elements are stored in batches of [`LANES`] (structure of arrays), so that
+//! on x86-64 with AVX2 each batch runs in SIMD registers (the
+//! [`crate::material::lanes::Real`] arithmetic); elsewhere lane by lane with
+//! the same expressions. The phases write only to their own batches; the
+//! caller may run each phase in parallel over chunks of batches with a
+//! barrier in between ([`BendingPass::add_forces`] does so with rayon).
+
+// Index loops mirror the indices of the formulas (nodes, edges, components).
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use super::element::BendingElement;
+use super::topology::BendingTopology;
+use super::{BendingStiffness, FOLD_LIMIT, HingeKind, TopologyError};
+use crate::material::lanes::Real;
+
+/// Elements per batch (one AVX2 register of `f64`).
+pub const LANES: usize = 4;
+/// Batches per parallel chunk in [`BendingPass::add_forces`].
+const CHUNK_BATCHES: usize = 64;
+/// Partner index of a free edge (no normal, no moment).
+const NONE: u32 = u32::MAX;
+/// Partner normals at or above this index are ghosts (`index − GHOST`).
+const GHOST: u32 = 1 << 31;
+
+type Lanes = [f64; LANES];
+
+/// Reference data of [`LANES`] elements (structure of arrays).
+#[derive(Debug, Clone, Copy)]
+struct ElementBatch {
+    /// Node indices of the own three nodes.
+    nodes: [[u32; LANES]; 3],
+    /// Reference edges `E_0, E_1` (x, y, z each) [mm].
+    edges: [Lanes; 6],
+    /// Element of the partner normal of each edge, `GHOST + g` for the ghost
+    /// `g` of a clamped edge, the element itself for a free edge.
+    partner_normal: [[u32; LANES]; 3],
+    /// `4 p + j` of the partner's moment on the shared edge (in the flat
+    /// moments array); `NONE` for free and clamped edges.
+    partner_moment: [[u32; LANES]; 3],
+    /// 1 for an edge with a hinge, 0 for a free edge.
+    active: [Lanes; 3],
+    /// `c_i` (Voigt, 3 per edge).
+    coefficients: [Lanes; 9],
+    /// `K0`.
+    reference_curvature: [Lanes; 3],
+    /// `A0 · (B11, B22, B66)` [N·mm³].
+    moduli: [Lanes; 3],
+    /// `1/(2 A0)` [1/mm²].
+    inv_double_area: Lanes,
+}
+
+/// Phase-1 output of a batch: the current own geometry.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GeometryBatch {
+    /// Unit normal `n` (x, y, z).
+    normal: [Lanes; 3],
+    /// Current edges `e_0, e_1`.
+    edges: [Lanes; 6],
+    /// `|N| = 2A`.
+    norm: Lanes,
+    /// `1/|N|`.
+    inv_norm: Lanes,
+}
+
+/// Phase-2 output of a batch.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HingeBatch {
+    /// `P_{e,i} = μ_i J cos(θ_i/2)` [N·mm²] (zero on free edges).
+    moments: [Lanes; 3],
+    /// `1/l_i²`.
+    inv_length2: [Lanes; 3],
+    /// `e_0·e_1, e_1·e_2, e_2·e_0`.
+    gram: [Lanes; 3],
+}
+
+/// The ghost triangle `(x_a, x_b, G)` of a clamped edge.
+#[derive(Debug, Clone, Copy)]
+struct Ghost {
+    /// The element and its clamped edge `i`.
+    element: usize,
+    edge: usize,
+    /// `a = node i+2`, `b = node i+1`.
+    nodes: [usize; 2],
+    /// `G − X_b` [mm].
+    ghost_from_b: [f64; 3],
+    /// `X_a − G` [mm].
+    a_from_ghost: [f64; 3],
+}
+
+/// Phase-1 output for one ghost triangle.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GhostState {
+    /// Unit normal of the ghost triangle.
+    normal: [f64; 3],
+    /// `1/|N'|`.
+    inv_norm: f64,
+    /// Current `e'_0 = G − x_b`, `e'_1 = x_a − G`.
+    edges: [[f64; 3]; 2],
+}
+
+/// Scratch arrays of the three phases, sized by [`BendingPass::scratch`].
+#[derive(Debug, Clone, Default)]
+pub struct BendingScratch {
+    /// Phase 1, one per batch.
+    pub geometry: Vec<GeometryBatch>,
+    /// Phase 1, one per clamped edge.
+    pub ghosts: Vec<GhostState>,
+    /// Phase 2, one per batch.
+    pub hinges: Vec<HingeBatch>,
+    /// Phase 1, one per element slot (`LANES` per batch): the unit normal,
+    /// compact for the partners' gathers (one cache line each).
+    pub normals: Vec<[f64; 4]>,
+    /// Phase 2, one per element slot: the moments `P_{e,i}`, compact for
+    /// the partners' gathers.
+    pub moments: Vec<[f64; 4]>,
+}
+
+/// The first element whose bending force could not be computed: a hinge
+/// completely folded (`1 + cos θ ≤ FOLD_LIMIT`) or a non-finite result
+/// (collapsed triangle). [`BendingPass::positions`] and the reference
+/// kernels name the cause.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("bending element {element}: a hinge is folded onto itself or the triangle has collapsed")]
+pub struct BendingFailure {
+    /// The element (triangle) index.
+    pub element: usize,
+}
+
+/// The explicit bending force pass over a mesh (docs/bending.md, "Explicit
+/// three-phase scheme").
+#[derive(Debug, Clone)]
+pub struct BendingPass {
+    batches: Vec<ElementBatch>,
+    ghosts: Vec<Ghost>,
+    /// Per element: its own nodes and the partner slot nodes (for
+    /// [`BendingPass::positions`]).
+    topology: BendingTopology,
+    elements: Vec<BendingElement>,
+    nodes: Vec<Vector3<f64>>,
+    element_count: usize,
+    /// Use the AVX2 path where the CPU has it.
+    simd: bool,
+}
+
+impl BendingPass {
+    /// Lays out the pass for the elements `elements` (one per triangle of
+    /// `topology`, built from the reference positions `nodes` [mm]) with the
+    /// stiffness `stiffness`.
+    ///
+    /// # Errors
+    /// [`TopologyError::ElementCount`] or [`TopologyError::KindMismatch`]
+    /// when the elements do not match the topology,
+    /// [`TopologyError::TooLarge`] past `2³¹` nodes or elements.
+    pub fn new(
+        nodes: &[Vector3<f64>],
+        topology: &BendingTopology,
+        elements: &[BendingElement],
+        stiffness: &BendingStiffness,
+    ) -> Result<Self, TopologyError> {
+        let count = topology.triangles.len();
+        if elements.len() != count || nodes.len() != topology.node_count {
+            return Err(TopologyError::ElementCount {
+                elements: elements.len(),
+                triangles: count,
+                nodes: nodes.len(),
+                node_count: topology.node_count,
+            });
+        }
+        if count >= GHOST as usize || nodes.len() >= GHOST as usize {
+            return Err(TopologyError::TooLarge {
+                elements: count,
+                nodes: nodes.len(),
+            });
+        }
+        let mut ghosts = Vec::new();
+        for (e, element) in elements.iter().enumerate() {
+            for i in 0..3 {
+                let has_partner = topology.partners[e][i].is_some();
+                let ok = match element.kinds[i] {
+                    HingeKind::Neighbour => has_partner,
+                    HingeKind::Free | HingeKind::Clamped => !has_partner,
+                };
+                if !ok {
+                    return Err(TopologyError::KindMismatch {
+                        triangle: e,
+                        edge: i,
+                    });
+                }
+                if element.kinds[i] == HingeKind::Clamped {
+                    let tri = topology.triangles[e];
+                    let (a, b) = (tri[(i + 2) % 3], tri[(i + 1) % 3]);
+                    let g = Vector3::from(element.ghosts[i]);
+                    ghosts.push(Ghost {
+                        element: e,
+                        edge: i,
+                        nodes: [a, b],
+                        ghost_from_b: (g - nodes[b]).into(),
+                        a_from_ghost: (nodes[a] - g).into(),
+                    });
+                }
+            }
+        }
+        let d = stiffness.diagonal();
+        let batch_count = count.div_ceil(LANES);
+        let mut batches = Vec::with_capacity(batch_count);
+        let mut ghost_of = vec![[NONE; 3]; count];
+        for (index, g) in ghosts.iter().enumerate() {
+            ghost_of[g.element][g.edge] = index as u32;
+        }
+        for b in 0..batch_count {
+            let mut batch = ElementBatch {
+                nodes: [[0; LANES]; 3],
+                edges: [[0.0; LANES]; 6],
+                partner_normal: [[0; LANES]; 3],
+                partner_moment: [[NONE; LANES]; 3],
+                active: [[0.0; LANES]; 3],
+                coefficients: [[0.0; LANES]; 9],
+                reference_curvature: [[0.0; LANES]; 3],
+                moduli: [[0.0; LANES]; 3],
+                inv_double_area: [0.0; LANES],
+            };
+            for l in 0..LANES {
+                // Padding lanes repeat the last element; their results are
+                // never written out.
+                let e = (b * LANES + l).min(count - 1);
+                let tri = topology.triangles[e];
+                let element = &elements[e];
+                for k in 0..3 {
+                    batch.nodes[k][l] = tri[k] as u32;
+                }
+                let e0 = nodes[tri[2]] - nodes[tri[1]];
+                let e1 = nodes[tri[0]] - nodes[tri[2]];
+                for c in 0..3 {
+                    batch.edges[c][l] = e0[c];
+                    batch.edges[3 + c][l] = e1[c];
+                }
+                for i in 0..3 {
+                    match (element.kinds[i], topology.partners[e][i]) {
+                        (HingeKind::Neighbour, Some(p)) => {
+                            batch.partner_normal[i][l] = p.triangle as u32;
+                            batch.partner_moment[i][l] = (4 * p.triangle + p.local) as u32;
+                            batch.active[i][l] = 1.0;
+                        }
+                        (HingeKind::Clamped, _) => {
+                            batch.partner_normal[i][l] = GHOST + ghost_of[e][i];
+                            batch.active[i][l] = 1.0;
+                        }
+                        _ => batch.partner_normal[i][l] = e as u32,
+                    }
+                    for v in 0..3 {
+                        batch.coefficients[3 * i + v][l] = element.coefficients[i][v];
+                    }
+                }
+                for v in 0..3 {
+                    batch.reference_curvature[v][l] = element.reference_curvature[v];
+                    batch.moduli[v][l] = element.area * d[v];
+                }
+                batch.inv_double_area[l] = 1.0 / (2.0 * element.area);
+            }
+            batches.push(batch);
+        }
+        Ok(Self {
+            batches,
+            ghosts,
+            topology: topology.clone(),
+            elements: elements.to_vec(),
+            nodes: nodes.to_vec(),
+            element_count: count,
+            simd: true,
+        })
+    }
+
+    /// With `enabled = false` the phases run lane by lane without SIMD (the
+    /// same expressions; for comparisons and tests). On by default.
+    pub fn with_simd(mut self, enabled: bool) -> Self {
+        self.simd = enabled;
+        self
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn simd_token(&self) -> Option<pulp::x86::V3> {
+        if self.simd {
+            pulp::x86::V3::try_new()
+        } else {
+            None
+        }
+    }
+
+    /// Number of elements.
+    pub fn element_count(&self) -> usize {
+        self.element_count
+    }
+
+    /// Number of batches (`⌈elements / LANES⌉`).
+    pub fn batch_count(&self) -> usize {
+        self.batches.len()
+    }
+
+    /// The elements, in the order of the force slots.
+    pub fn elements(&self) -> &[BendingElement] {
+        &self.elements
+    }
+
+    /// Scratch arrays of the right sizes.
+    pub fn scratch(&self) -> BendingScratch {
+        BendingScratch {
+            geometry: vec![GeometryBatch::default(); self.batches.len()],
+            ghosts: vec![GhostState::default(); self.ghosts.len()],
+            hinges: vec![HingeBatch::default(); self.batches.len()],
+            normals: vec![[0.0; 4]; self.batches.len() * LANES],
+            moments: vec![[0.0; 4]; self.batches.len() * LANES],
+        }
+    }
+
+    /// The current positions `X + u` [mm] of the six stencil slots of
+    /// element `e` for the reference kernels (ignored slots: the element's
+    /// first node).
+    pub fn positions(&self, e: usize, u: &[f64]) -> [Vector3<f64>; 6] {
+        let stencil = self.topology.stencil(e);
+        let first = stencil[0].unwrap_or(0);
+        std::array::from_fn(|s| {
+            let n = stencil[s].unwrap_or(first);
+            self.nodes[n] + Vector3::new(u[3 * n], u[3 * n + 1], u[3 * n + 2])
+        })
+    }
+
+    /// Phase 1 for the batches `first..first + geometry.len()`: own edges,
+    /// `|N|`, `1/|N|` and the unit normal from the displacements `u` [mm]
+    /// (3 per node); the normals also into `normals` (`LANES` slots per
+    /// batch).
+    pub fn geometry(
+        &self,
+        first: usize,
+        u: &[f64],
+        geometry: &mut [GeometryBatch],
+        normals: &mut [[f64; 4]],
+    ) {
+        let batches = &self.batches[first..first + geometry.len()];
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = self.simd_token() {
+            let pass = Avx2Geometry {
+                simd,
+                batches,
+                u,
+                geometry: &mut *geometry,
+            };
+            <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
+        } else {
+            for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
+                for l in 0..LANES {
+                    geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
+            for l in 0..LANES {
+                geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
+            }
+        }
+        for (geo, normals) in geometry.iter().zip(normals.chunks_exact_mut(LANES)) {
+            for (l, normal) in normals.iter_mut().enumerate() {
+                *normal = [geo.normal[0][l], geo.normal[1][l], geo.normal[2][l], 0.0];
+            }
+        }
+    }
+
+    /// Phase 1 for the ghost triangles of clamped edges (all of them; there
+    /// are few).
+    pub fn ghost_normals(&self, u: &[f64], ghosts: &mut [GhostState]) {
+        for (ghost, out) in self.ghosts.iter().zip(ghosts.iter_mut()) {
+            let [a, b] = ghost.nodes;
+            let mut e0 = [0.0; 3];
+            let mut e1 = [0.0; 3];
+            for c in 0..3 {
+                e0[c] = ghost.ghost_from_b[c] - u[3 * b + c];
+                e1[c] = ghost.a_from_ghost[c] + u[3 * a + c];
+            }
+            let big_n = cross(&e0, &e1);
+            let norm = dot(&big_n, &big_n).sqrt();
+            let inv_norm = 1.0 / norm;
+            *out = GhostState {
+                normal: big_n.map(|c| c * inv_norm),
+                inv_norm,
+                edges: [e0, e1],
+            };
+        }
+    }
+
+    /// Phase 2 for the batches `first..first + hinges.len()`: hinge measures
+    /// from the partners' normals (`geometry`, `normals` and `ghosts` of all
+    /// elements, from phase 1), curvature, moments into `hinges` and
+    /// `moments` (`LANES` slots per batch), and the forces of the own energy
+    /// on the own nodes added to `forces` (the slots of the elements of
+    /// these batches, `forces.len() = min(LANES·len, count − LANES·first)`).
+    ///
+    /// # Errors
+    /// The first element of these batches with a folded hinge or a
+    /// non-finite result.
+    #[allow(clippy::too_many_arguments)]
+    pub fn moments(
+        &self,
+        first: usize,
+        geometry: &[GeometryBatch],
+        normals: &[[f64; 4]],
+        ghosts: &[GhostState],
+        hinges: &mut [HingeBatch],
+        moments: &mut [[f64; 4]],
+        forces: &mut [[f64; 9]],
+    ) -> Result<(), BendingFailure> {
+        let batches = &self.batches[first..first + hinges.len()];
+        let own = &geometry[first..first + hinges.len()];
+        let failed;
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(simd) = self.simd_token() {
+                let pass = Avx2Moments {
+                    simd,
+                    batches,
+                    own,
+                    normals,
+                    ghosts,
+                    hinges: &mut *hinges,
+                    forces,
+                };
+                failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
+            } else {
+                failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
+        }
+        for (hinge, moments) in hinges.iter().zip(moments.chunks_exact_mut(LANES)) {
+            for (l, m) in moments.iter_mut().enumerate() {
+                *m = [
+                    hinge.moments[0][l],
+                    hinge.moments[1][l],
+                    hinge.moments[2][l],
+                    0.0,
+                ];
+            }
+        }
+        match failed {
+            Some(offset) => Err(BendingFailure {
+                element: first * LANES + offset,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Phase 3 for the batches `first..first + forces.len().div_ceil(LANES)`:
+    /// the partners' moments (`hinges` and `moments` of all elements, from
+    /// phase 2) on the shared edges and the ghost-triangle terms of clamped
+    /// edges, added to `forces`.
+    pub fn hinge_forces(
+        &self,
+        first: usize,
+        geometry: &[GeometryBatch],
+        ghosts: &[GhostState],
+        hinges: &[HingeBatch],
+        moments: &[[f64; 4]],
+        forces: &mut [[f64; 9]],
+    ) {
+        let count = forces.len().div_ceil(LANES);
+        let batches = &self.batches[first..first + count];
+        let own = &geometry[first..first + count];
+        let own_hinges = &hinges[first..first + count];
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = self.simd_token() {
+            let pass = Avx2HingeForces {
+                simd,
+                batches,
+                own,
+                own_hinges,
+                moments,
+                forces: &mut *forces,
+            };
+            <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
+            self.ghost_forces(first, ghosts, hinges, geometry, forces);
+            return;
+        }
+        for (b, (batch, (geo, hinge))) in batches.iter().zip(own.iter().zip(own_hinges)).enumerate()
+        {
+            let end = ((b + 1) * LANES).min(forces.len());
+            let slots = &mut forces[b * LANES..end];
+            for l in 0..slots.len() {
+                hinge_force_lanes::<f64, 1>(0.0, batch, geo, hinge, moments, slots, l);
+            }
+        }
+        self.ghost_forces(first, ghosts, hinges, geometry, forces);
+    }
+
+    /// The ghost-triangle hinge terms of the clamped edges of the elements
+    /// `first·LANES..` (those of `forces`): `(P_{e,i}/l_i²)(e'_2·e'_k)/|N'| n'`
+    /// on the edge nodes.
+    fn ghost_forces(
+        &self,
+        first: usize,
+        ghosts: &[GhostState],
+        hinges: &[HingeBatch],
+        geometry: &[GeometryBatch],
+        forces: &mut [[f64; 9]],
+    ) {
+        let start = first * LANES;
+        let end = start + forces.len();
+        let from = self.ghosts.partition_point(|g| g.element < start);
+        let to = self.ghosts.partition_point(|g| g.element < end);
+        for (ghost, state) in self.ghosts[from..to].iter().zip(&ghosts[from..to]) {
+            let e = ghost.element;
+            let i = ghost.edge;
+            let (b, l) = (e / LANES, e % LANES);
+            let hinge = &hinges[b];
+            let geo = &geometry[b];
+            let moment = hinge.moments[i][l] * hinge.inv_length2[i][l];
+            // e'_2 = x_b − x_a = −e_i.
+            let own_edge = own_edge(geo, l, i);
+            let edge2 = own_edge.map(|c| -c);
+            let scale = moment * state.inv_norm;
+            let [e0, e1] = &state.edges;
+            let coefficient = [dot(&edge2, e0) * scale, dot(&edge2, e1) * scale];
+            let slot_a = (i + 2) % 3;
+            let slot_b = (i + 1) % 3;
+            let out = &mut forces[e - start];
+            for c in 0..3 {
+                out[3 * slot_a + c] += coefficient[0] * state.normal[c];
+                out[3 * slot_b + c] += coefficient[1] * state.normal[c];
+            }
+        }
+    }
+
+    /// All three phases for the displacements `u` [mm], the bending forces
+    /// `∂W/∂x` [N] of each element's own nodes *added* to `forces` (one slot
+    /// per element, node-major). Runs in parallel on rayon's current pool
+    /// over chunks of batches, a barrier between the phases.
+    ///
+    /// # Errors
+    /// The first element with a folded hinge or a non-finite result.
+    pub fn add_forces(
+        &self,
+        u: &[f64],
+        scratch: &mut BendingScratch,
+        forces: &mut [[f64; 9]],
+    ) -> Result<(), BendingFailure> {
+        let chunk = CHUNK_BATCHES;
+        scratch
+            .geometry
+            .par_chunks_mut(chunk)
+            .zip(scratch.normals.par_chunks_mut(chunk * LANES))
+            .enumerate()
+            .for_each(|(c, (out, normals))| self.geometry(c * chunk, u, out, normals));
+        self.ghost_normals(u, &mut scratch.ghosts);
+        let geometry = &scratch.geometry;
+        let normals = &scratch.normals;
+        let ghosts = &scratch.ghosts;
+        let failure = scratch
+            .hinges
+            .par_chunks_mut(chunk)
+            .zip(scratch.moments.par_chunks_mut(chunk * LANES))
+            .zip(forces.par_chunks_mut(chunk * LANES))
+            .enumerate()
+            .map(|(c, ((hinges, moments), forces))| {
+                self.moments(
+                    c * chunk,
+                    geometry,
+                    normals,
+                    ghosts,
+                    hinges,
+                    moments,
+                    forces,
+                )
+                .err()
+                .map_or(usize::MAX, |f| f.element)
+            })
+            .min()
+            .unwrap_or(usize::MAX);
+        if failure != usize::MAX {
+            return Err(BendingFailure { element: failure });
+        }
+        let hinges = &scratch.hinges;
+        let moments = &scratch.moments;
+        forces
+            .par_chunks_mut(chunk * LANES)
+            .enumerate()
+            .for_each(|(c, forces)| {
+                self.hinge_forces(c * chunk, geometry, ghosts, hinges, moments, forces)
+            });
+        Ok(())
+    }
+}
+
+/// `e_i` of lane `l` from the phase-1 edges (`e_2 = −e_0 − e_1`).
+#[inline]
+fn own_edge(geo: &GeometryBatch, l: usize, i: usize) -> [f64; 3] {
+    std::array::from_fn(|c| match i {
+        0 => geo.edges[c][l],
+        1 => geo.edges[3 + c][l],
+        _ => -geo.edges[c][l] - geo.edges[3 + c][l],
+    })
+}
+
+#[inline(always)]
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline(always)]
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Lanes `off..off + W` of `a`.
+#[inline(always)]
+fn ld<V: Real<Array = [f64; W]>, const W: usize>(ctx: V, a: &Lanes, off: usize) -> V {
+    let mut t = [0.0; W];
+    t.copy_from_slice(&a[off..off + W]);
+    ctx.load(t)
+}
+
+/// Stores `v` into lanes `off..off + W` of `a`.
+#[inline(always)]
+fn st<V: Real<Array = [f64; W]>, const W: usize>(v: V, a: &mut Lanes, off: usize) {
+    a[off..off + W].copy_from_slice(&v.store());
+}
+
+#[inline(always)]
+fn vdot<V: Real>(a: &[V; 3], b: &[V; 3]) -> V {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline(always)]
+fn vcross<V: Real>(a: &[V; 3], b: &[V; 3]) -> [V; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Phase 1 for lanes `off..off + W` of one batch.
+#[inline(always)]
+fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
+    ctx: V,
+    batch: &ElementBatch,
+    u: &[f64],
+    out: &mut GeometryBatch,
+    off: usize,
+) {
+    // Gather the own nodes' displacements: du[k][c] lane by lane.
+    let mut du = [[[0.0; W]; 3]; 3];
+    for w in 0..W {
+        for k in 0..3 {
+            let n = 3 * batch.nodes[k][off + w] as usize;
+            let node = &u[n..n + 3];
+            for c in 0..3 {
+                du[k][c][w] = node[c];
+            }
+        }
+    }
+    let load = |k: usize, c: usize| ctx.load(du[k][c]);
+    let mut e0 = [ctx; 3];
+    let mut e1 = [ctx; 3];
+    for c in 0..3 {
+        e0[c] = ld(ctx, &batch.edges[c], off) + (load(2, c) - load(1, c));
+        e1[c] = ld(ctx, &batch.edges[3 + c], off) + (load(0, c) - load(2, c));
+    }
+    let big_n = vcross(&e0, &e1);
+    let norm = vdot(&big_n, &big_n).sqrt();
+    let inv_norm = ctx.splat(1.0) / norm;
+    for c in 0..3 {
+        st(big_n[c] * inv_norm, &mut out.normal[c], off);
+        st(e0[c], &mut out.edges[c], off);
+        st(e1[c], &mut out.edges[3 + c], off);
+    }
+    st(norm, &mut out.norm, off);
+    st(inv_norm, &mut out.inv_norm, off);
+}
+
+/// Phase 2 for lanes `off..off + W` of one batch; returns the lanes (bits)
+/// that failed.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
+    ctx: V,
+    batch: &ElementBatch,
+    own: &GeometryBatch,
+    normals: &[[f64; 4]],
+    ghosts: &[GhostState],
+    hinge: &mut HingeBatch,
+    forces: &mut [[f64; 9]],
+    off: usize,
+) -> u32 {
+    let one = ctx.splat(1.0);
+    let mut e = [[ctx; 3]; 3];
+    let mut n = [ctx; 3];
+    for c in 0..3 {
+        e[0][c] = ld(ctx, &own.edges[c], off);
+        e[1][c] = ld(ctx, &own.edges[3 + c], off);
+        e[2][c] = -(e[0][c] + e[1][c]);
+        n[c] = ld(ctx, &own.normal[c], off);
+    }
+    let norm = ld(ctx, &own.norm, off);
+    let inv_norm = ld(ctx, &own.inv_norm, off);
+    let length2 = [vdot(&e[0], &e[0]), vdot(&e[1], &e[1]), vdot(&e[2], &e[2])];
+    let inv_length2 = [one / length2[0], one / length2[1], one / length2[2]];
+    // e_i × n = l_i ν_i (outward in-plane normal times length).
+    let outward = [vcross(&e[0], &n), vcross(&e[1], &n), vcross(&e[2], &n)];
+    let area_ratio = norm * ld(ctx, &batch.inv_double_area, off);
+    let mut phi = [ctx; 3];
+    let mut two_half_cos = [ctx; 3];
+    let mut failed = 0u32;
+    for i in 0..3 {
+        // Gather the partner normals.
+        let mut partner = [[0.0; W]; 3];
+        for w in 0..W {
+            let p = batch.partner_normal[i][off + w];
+            if p < GHOST {
+                let normal = &normals[p as usize];
+                for c in 0..3 {
+                    partner[c][w] = normal[c];
+                }
+            } else {
+                let g = &ghosts[(p - GHOST) as usize];
+                for c in 0..3 {
+                    partner[c][w] = g.normal[c];
+                }
+            }
+        }
+        let partner = [
+            ctx.load(partner[0]),
+            ctx.load(partner[1]),
+            ctx.load(partner[2]),
+        ];
+        let active = ld(ctx, &batch.active[i], off);
+        let one_plus_cos = one + vdot(&n, &partner);
+        // l_i sin θ = −n'·(e_i × n).
+        let length_sin = -vdot(&partner, &outward[i]);
+        let fold = one_plus_cos.le(ctx.splat(FOLD_LIMIT)) & active.gt(ctx.splat(0.0));
+        failed |= V::bits(fold);
+        // 2 cos(θ/2) = √(2(1 + cos θ)); φ = θ̂ J / l = 2 (l sin θ) J / (l² · 2cos(θ/2)).
+        let y = (one_plus_cos * 2.0).sqrt();
+        two_half_cos[i] = y;
+        phi[i] = length_sin * 2.0 * area_ratio * inv_length2[i] / y * active;
+    }
+    // ΔK, moment m = A0 D ΔK, μ_i = c_i·m.
+    let mut moment = [ctx; 3];
+    for v in 0..3 {
+        let mut k = -ld(ctx, &batch.reference_curvature[v], off);
+        for (i, phi) in phi.iter().enumerate() {
+            k = k + *phi * ld(ctx, &batch.coefficients[3 * i + v], off);
+        }
+        moment[v] = k * ld(ctx, &batch.moduli[v], off);
+    }
+    let mut mu = [ctx; 3];
+    for (i, mu) in mu.iter_mut().enumerate() {
+        *mu = ld(ctx, &batch.coefficients[3 * i], off) * moment[0]
+            + ld(ctx, &batch.coefficients[3 * i + 1], off) * moment[1]
+            + ld(ctx, &batch.coefficients[3 * i + 2], off) * moment[2];
+    }
+    // Per-edge moments P_i = μ_i J cos(θ_i/2) and π_i = P_i / l_i².
+    let mut pi = [ctx; 3];
+    let mut sigma = ctx.splat(0.0);
+    let mut tau = [ctx; 3];
+    for i in 0..3 {
+        let p = mu[i] * area_ratio * (two_half_cos[i] * 0.5) * ld(ctx, &batch.active[i], off);
+        st(p, &mut hinge.moments[i], off);
+        st(inv_length2[i], &mut hinge.inv_length2[i], off);
+        pi[i] = p * inv_length2[i];
+        let mu_phi = mu[i] * phi[i];
+        sigma = sigma + mu_phi;
+        tau[i] = mu_phi * inv_length2[i];
+    }
+    sigma = sigma * inv_norm;
+    // Gram matrix off-diagonals from the squared lengths.
+    let gram = [
+        (length2[2] - length2[0] - length2[1]) * 0.5, // e_0·e_1
+        (length2[0] - length2[1] - length2[2]) * 0.5, // e_1·e_2
+        (length2[1] - length2[2] - length2[0]) * 0.5, // e_2·e_0
+    ];
+    for (g, out) in gram.iter().zip(hinge.gram.iter_mut()) {
+        st(*g, out, off);
+    }
+    // t_k = (1/|N|) Σ_i π_i (e_i·e_k).
+    let t = [
+        (pi[0] * length2[0] + pi[1] * gram[0] + pi[2] * gram[2]) * inv_norm,
+        (pi[0] * gram[0] + pi[1] * length2[1] + pi[2] * gram[1]) * inv_norm,
+        (pi[0] * gram[2] + pi[1] * gram[1] + pi[2] * length2[2]) * inv_norm,
+    ];
+    let mut f = [[ctx; 3]; 3];
+    let mut total = ctx.splat(0.0);
+    for k in 0..3 {
+        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+        for c in 0..3 {
+            f[k][c] = t[k] * n[c] - sigma * outward[k][c] + tau[k2] * e[k2][c] - tau[k1] * e[k1][c];
+            total = total + f[k][c].abs();
+        }
+    }
+    let not_finite = !total.is_finite();
+    failed |= V::bits(not_finite);
+    let lanes = W.min(forces.len().saturating_sub(off));
+    let stored: [[[f64; W]; 3]; 3] = [
+        [f[0][0].store(), f[0][1].store(), f[0][2].store()],
+        [f[1][0].store(), f[1][1].store(), f[1][2].store()],
+        [f[2][0].store(), f[2][1].store(), f[2][2].store()],
+    ];
+    scatter_add(forces, off, &stored);
+    // Padding lanes never fail.
+    if lanes < W {
+        failed &= (1u32 << lanes) - 1;
+    }
+    failed
+}
+
+/// Phase 2 lane by lane (no SIMD); the first failing offset.
+fn moments_scalar(
+    batches: &[ElementBatch],
+    own: &[GeometryBatch],
+    normals: &[[f64; 4]],
+    ghosts: &[GhostState],
+    hinges: &mut [HingeBatch],
+    forces: &mut [[f64; 9]],
+) -> Option<usize> {
+    for (b, (batch, (geo, hinge))) in batches
+        .iter()
+        .zip(own.iter().zip(hinges.iter_mut()))
+        .enumerate()
+    {
+        let end = ((b + 1) * LANES).min(forces.len());
+        let slots = &mut forces[b * LANES..end];
+        for l in 0..LANES {
+            if moment_lanes::<f64, 1>(0.0, batch, geo, normals, ghosts, hinge, slots, l) != 0 {
+                return Some(b * LANES + l);
+            }
+        }
+    }
+    None
+}
+
+/// Phase 3 for lanes `off..off + W` of one batch.
+#[inline(always)]
+fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
+    ctx: V,
+    batch: &ElementBatch,
+    own: &GeometryBatch,
+    hinge: &HingeBatch,
+    moments: &[[f64; 4]],
+    forces: &mut [[f64; 9]],
+    off: usize,
+) {
+    let mut pi = [ctx; 3];
+    let mut partner_moment = [ctx; 3];
+    for i in 0..3 {
+        let mut moment = [0.0; W];
+        for (w, m) in moment.iter_mut().enumerate() {
+            let p = batch.partner_moment[i][off + w];
+            if p != NONE {
+                *m = moments[p as usize / 4][p as usize % 4];
+            }
+        }
+        partner_moment[i] = ctx.load(moment);
+        pi[i] = partner_moment[i] * ld(ctx, &hinge.inv_length2[i], off);
+    }
+    let gram = [
+        ld(ctx, &hinge.gram[0], off),
+        ld(ctx, &hinge.gram[1], off),
+        ld(ctx, &hinge.gram[2], off),
+    ];
+    let inv_norm = ld(ctx, &own.inv_norm, off);
+    // t_k = (1/|N|) (P'_k + Σ_{i≠k} π'_i e_i·e_k), using π'_k l_k² = P'_k.
+    let t = [
+        (partner_moment[0] + pi[1] * gram[0] + pi[2] * gram[2]) * inv_norm,
+        (pi[0] * gram[0] + partner_moment[1] + pi[2] * gram[1]) * inv_norm,
+        (pi[0] * gram[2] + pi[1] * gram[1] + partner_moment[2]) * inv_norm,
+    ];
+    let n = [
+        ld(ctx, &own.normal[0], off),
+        ld(ctx, &own.normal[1], off),
+        ld(ctx, &own.normal[2], off),
+    ];
+    let stored: [[[f64; W]; 3]; 3] = [
+        [
+            (t[0] * n[0]).store(),
+            (t[0] * n[1]).store(),
+            (t[0] * n[2]).store(),
+        ],
+        [
+            (t[1] * n[0]).store(),
+            (t[1] * n[1]).store(),
+            (t[1] * n[2]).store(),
+        ],
+        [
+            (t[2] * n[0]).store(),
+            (t[2] * n[1]).store(),
+            (t[2] * n[2]).store(),
+        ],
+    ];
+    scatter_add(forces, off, &stored);
+}
+
+/// Adds node-major lane forces `f[k][c][w]` to the slots `off..off + W`
+/// that exist (the last batch may be partial).
+#[inline(always)]
+fn scatter_add<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; W]; 3]; 3]) {
+    let start = off.min(forces.len());
+    let slots = &mut forces[start..];
+    if slots.len() >= W {
+        for (w, slot) in slots[..W].iter_mut().enumerate() {
+            for k in 0..3 {
+                for c in 0..3 {
+                    slot[3 * k + c] += f[k][c][w];
+                }
+            }
+        }
+    } else {
+        for (w, slot) in slots.iter_mut().enumerate() {
+            for k in 0..3 {
+                for c in 0..3 {
+                    slot[3 * k + c] += f[k][c][w];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    //! The phases entered through `pulp`'s x86-64-v3 token, four lanes in
+    //! one AVX2 register (eight lanes in two registers spilled more to the
+    //! stack and measured slower).
+    use super::*;
+    use crate::material::lanes::x86::F64x4;
+
+    pub(super) struct Avx2Geometry<'a> {
+        pub simd: pulp::x86::V3,
+        pub batches: &'a [ElementBatch],
+        pub u: &'a [f64],
+        pub geometry: &'a mut [GeometryBatch],
+    }
+
+    impl pulp::WithSimd for Avx2Geometry<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) {
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
+            for (batch, out) in self.batches.iter().zip(self.geometry.iter_mut()) {
+                geometry_lanes::<F64x4, LANES>(ctx, batch, self.u, out, 0);
+            }
+        }
+    }
+
+    pub(super) struct Avx2Moments<'a> {
+        pub simd: pulp::x86::V3,
+        pub batches: &'a [ElementBatch],
+        pub own: &'a [GeometryBatch],
+        pub normals: &'a [[f64; 4]],
+        pub ghosts: &'a [GhostState],
+        pub hinges: &'a mut [HingeBatch],
+        pub forces: &'a mut [[f64; 9]],
+    }
+
+    impl pulp::WithSimd for Avx2Moments<'_> {
+        type Output = Option<usize>;
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
+            let mut first_failure = None;
+            for (b, (batch, (geo, hinge))) in self
+                .batches
+                .iter()
+                .zip(self.own.iter().zip(self.hinges.iter_mut()))
+                .enumerate()
+            {
+                let end = ((b + 1) * LANES).min(self.forces.len());
+                let slots = &mut self.forces[b * LANES..end];
+                let failed = moment_lanes::<F64x4, LANES>(
+                    ctx,
+                    batch,
+                    geo,
+                    self.normals,
+                    self.ghosts,
+                    hinge,
+                    slots,
+                    0,
+                );
+                if failed != 0 && first_failure.is_none() {
+                    first_failure = Some(b * LANES + failed.trailing_zeros() as usize);
+                }
+            }
+            first_failure
+        }
+    }
+
+    pub(super) struct Avx2HingeForces<'a> {
+        pub simd: pulp::x86::V3,
+        pub batches: &'a [ElementBatch],
+        pub own: &'a [GeometryBatch],
+        pub own_hinges: &'a [HingeBatch],
+        pub moments: &'a [[f64; 4]],
+        pub forces: &'a mut [[f64; 9]],
+    }
+
+    impl pulp::WithSimd for Avx2HingeForces<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) {
+            let ctx = F64x4::new(self.simd, [0.0; LANES]);
+            for (b, (batch, (geo, hinge))) in self
+                .batches
+                .iter()
+                .zip(self.own.iter().zip(self.own_hinges))
+                .enumerate()
+            {
+                let end = ((b + 1) * LANES).min(self.forces.len());
+                let slots = &mut self.forces[b * LANES..end];
+                hinge_force_lanes::<F64x4, LANES>(ctx, batch, geo, hinge, self.moments, slots, 0);
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+use avx2::{Avx2Geometry, Avx2HingeForces, Avx2Moments};
