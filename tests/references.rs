@@ -106,16 +106,17 @@ fn rk4_converges_with_order_four() {
         let orders: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
         println!("L/c = {lc}: relative errors {errors:?}, observed orders {orders:?}");
         // Pairs in the asymptotic range and above round-off: both errors in
-        // [1e-13, 1e-9] (the sweep's round-off is ~1e-16 per step, ≤ 1e-13
-        // here; above 1e-9 the coarse steps are pre-asymptotic for L/c = 4,
-        // where the error even changes sign). The observed order of a
+        // [1e-12, 2e-9] (the round-off floor, seen at N = 512 … 1024, is
+        // ~3e-14, so ≥ 1e-12 keeps its effect on an order below 0.05; above
+        // 2e-9 the coarse steps are pre-asymptotic for L/c = 4, where the
+        // error even changes sign). The observed order of a
         // fourth-order scheme is 4 + O(h): measured, its deviation roughly
         // halves per doubling. All fitted pairs must be within 0.3 of 4 and
         // the finest within 0.15 (neither admits order 3 or 5).
         let fitted: Vec<f64> = errors
             .windows(2)
             .zip(&orders)
-            .filter(|(e, _)| e.iter().all(|&x| (1e-13..=1e-9).contains(&x)))
+            .filter(|(e, _)| e.iter().all(|&x| (1e-12..=2e-9).contains(&x)))
             .map(|(_, &o)| o)
             .collect();
         assert!(
@@ -239,16 +240,16 @@ fn paper_cases_match_the_python_reference() {
     }
 }
 
-/// Requirement: robustness for `L/c` up to (beyond) 4, and equilibrium of
+/// Requirement: robustness for `L/c` up to 10 (the brief asks for 4), and equilibrium of
 /// the solution: the clamp moment equals the moment of the strip's weight,
 /// `M(0) = q ∫_0^L x(s) ds` (the definition of M, integrated here from the
 /// returned shape by Simpson's rule on 4000 intervals; Simpson's error
 /// `L h⁴ max|x⁗| / 180` with `|x⁗| ≲ λ²/L³` is below 1e-11 of M for
-/// λ ≤ 216, so the tolerance 1e-9 is the solver's accuracy with margin).
+/// λ ≤ 1000, so the tolerance 1e-9 is the solver's accuracy with margin).
 /// The slope grows monotonically from θ0 and stays below π/2.
 #[test]
 fn large_deflections_are_in_equilibrium() {
-    for lc in [1.0, 3.0, 4.0, 6.0] {
+    for lc in [1.0, 3.0, 4.0, 6.0, 10.0] {
         let c = unit(lc);
         let s = solve(&c);
         assert!(s.error_estimate <= 0.1 * TARGET_ERROR);

@@ -19,29 +19,37 @@
 //! `ŝ = s/L` the problem has one parameter, `λ = q L³ / B = (L/c)³` with
 //! `c = (B/q)^(1/3)` Peirce's bending length.
 //!
-//! **Method.** With `τ = 1 − ŝ` (from the tip), `k = dθ/dŝ`:
+//! **Method.** With `τ = 1 − ŝ` (from the tip), `k = dθ/dŝ` and the angle
+//! from the downward vertical `φ = π/2 − θ`:
 //!
 //! ```text
-//! dθ/dτ = −k,   dk/dτ = λ τ cos θ,   dX/dτ = cos θ,   dZ/dτ = sin θ
-//! θ(0) = θ_tip,  k(0) = 0,  X(0) = Z(0) = 0
+//! dφ/dτ = k,   dk/dτ = λ τ sin φ,   dX/dτ = sin φ,   dZ/dτ = cos φ
+//! φ(0) = φ_tip,  k(0) = 0,  X(0) = Z(0) = 0
 //! ```
 //!
 //! is integrated with fixed-step classical RK4 from the tip (`τ = 0`) to
 //! the clamp (`τ = 1`), and the unknown tip angle is found by bisection on
-//! `θ(τ = 1) = θ0` in the bracket `[θ0, π/2]`. Then `δ = L Z(1)` (tip
-//! deflection, positive down) and `x_tip = L X(1)`. The bracket is always
-//! valid and the root unique for `0 ≤ θ0 < π/2`: at `θ_tip = π/2` the strip
-//! hangs straight (`θ ≡ π/2 > θ0`); at `θ_tip = θ0` it curls back below
-//! `θ0` (`k > 0` while `cos θ > 0`); and two trial shots keep their order,
-//! `θ_B(τ) > θ_A(τ)` for all `τ`, while both stay in `[0, π]` (the
-//! difference `D` obeys `D'' = λ τ (cos θ_A − cos θ_B) > 0`). A shot that
-//! falls below `θ0` before the clamp is therefore "too low" without being
-//! integrated further, which keeps every shot inside `(−π/2, π/2]` and the
-//! bisection monotone at any `λ`.
+//! `φ(τ = 1) = φ0 = π/2 − θ0` in the bracket `φ_tip ∈ [0, φ0]`. Then
+//! `δ = L Z(1)` (tip deflection, positive down), `x_tip = L X(1)` and
+//! `M(0) = B k(1)/L`. Shooting on `φ` rather than `θ` keeps the full
+//! relative precision of a tip that hangs nearly vertical: `φ_tip` falls
+//! like `exp(−c (L/c)^{3/2})` (3e-4 at `L/c = 6`, 4.5e-9 at 10), far below
+//! the resolution of `θ` near `π/2`.
+//!
+//! The bracket is always valid and the root unique for `0 ≤ θ0 < π/2`: at
+//! `φ_tip = 0` the strip hangs straight down (`φ ≡ 0 < φ0`); at
+//! `φ_tip = φ0` it curls on past `φ0` (`k > 0` while `sin φ > 0`); and two
+//! trial shots keep their order, `φ_B(τ) > φ_A(τ)` for all `τ`, while both
+//! stay in `[0, π]` (the difference `D` obeys
+//! `D'' = λ τ (sin φ_B − sin φ_A) > 0` for `φ_A < φ_B ≤ π/2`, the range up
+//! to the clamp for `θ0 ≥ 0`). A shot that passes `φ0` before the clamp is
+//! therefore "too high" without being integrated further, which keeps every
+//! shot inside `[0, π)` and the bisection monotone at any `λ`.
 //!
 //! [`HeavyCantilever::solve`] doubles the step count until the Richardson
-//! estimate `|δ_2N − δ_N| / 15` of the fourth-order scheme is below
-//! [`TARGET_ERROR`] of `δ`, and returns the `2N` solution.
+//! estimates `|δ_2N − δ_N| / 15` and `|x_2N − x_N| / 15` of the fourth-order
+//! scheme are below a tenth of [`TARGET_ERROR`] of `δ` and of `x_tip`, and
+//! returns the `2N` solution.
 
 use std::f64::consts::FRAC_PI_2;
 
@@ -122,6 +130,10 @@ pub struct CantileverSolution {
     pub tip_x: f64,
     /// Slope at the tip `θ(L)` below the horizontal [rad].
     pub tip_angle: f64,
+    /// The same as the angle from the downward vertical, `π/2 − θ(L)`
+    /// [rad], with full relative precision when the tip hangs nearly
+    /// vertical (the shooting parameter).
+    pub tip_angle_from_vertical: f64,
     /// Clamp moment `M(0) = B θ'(0)` per unit width [N·mm/mm].
     pub clamp_moment: f64,
     /// RK4 steps over the length.
@@ -145,15 +157,15 @@ pub struct ShapePoint {
     pub angle: f64,
 }
 
-/// The state `[θ, k, X, Z]` of the sweep from the tip.
+/// The state `[φ, k, X, Z]` of the sweep from the tip (`φ = π/2 − θ`).
 type State = [f64; 4];
 
 /// How a shot from the tip ends.
 enum Shot {
-    /// The slope fell below `θ0` before the clamp: the tip angle is too low.
-    Low,
-    /// The shot reached the clamp with this state; `θ(1) ≥ θ0` means the
-    /// tip angle is too high (or right).
+    /// `φ` passed `φ0` before the clamp: `φ_tip` is too large.
+    Past,
+    /// The shot reached the clamp with this state; `φ(1) ≤ φ0` means
+    /// `φ_tip` is too small (or right).
     AtClamp(State),
 }
 
@@ -239,14 +251,14 @@ impl HeavyCantilever {
     /// [`ElasticaError::NotConverged`] if [`MAX_STEPS`] is not enough (not
     /// seen for `L/c` up to 10).
     pub fn solve(&self) -> Result<CantileverSolution, ElasticaError> {
-        let bracket = [self.clamp_angle, FRAC_PI_2];
         let lambda = self.load_parameter();
         let mut steps = (32.0 * lambda.sqrt()).ceil().max(64.0) as usize;
-        let mut coarse = self.solve_fixed(steps, bracket)?;
+        let bracket = [0.0, FRAC_PI_2 - self.clamp_angle];
+        let mut coarse = self.solve_vertical(steps, bracket)?;
         let mut estimate = f64::NAN;
         while steps <= MAX_STEPS / 2 {
             steps *= 2;
-            let fine = self.solve_fixed(steps, bracket)?;
+            let fine = self.solve_vertical(steps, bracket)?;
             estimate = ((fine.tip_deflection - coarse.tip_deflection) / fine.tip_deflection)
                 .abs()
                 .max(((fine.tip_x - coarse.tip_x) / fine.tip_x).abs())
@@ -267,7 +279,8 @@ impl HeavyCantilever {
     }
 
     /// Solves with `steps` RK4 steps and bisection on the tip angle in
-    /// `bracket = [lower, upper]` (rad) to the resolution of `f64`.
+    /// `bracket = [lower, upper]` (rad, `θ_tip`; the bisection itself runs
+    /// on `φ_tip = π/2 − θ_tip` down to adjacent floating-point numbers).
     ///
     /// # Errors
     /// `steps == 0`, a bracket that is not finite and increasing, or one in
@@ -284,7 +297,7 @@ impl HeavyCantilever {
                 expected: "at least one RK4 step",
             });
         }
-        let [mut lower, mut upper] = bracket;
+        let [lower, upper] = bracket;
         if !(lower.is_finite() && upper.is_finite() && lower < upper) {
             return Err(ElasticaError::InvalidParameter {
                 parameter: "bracket",
@@ -292,47 +305,77 @@ impl HeavyCantilever {
                 expected: "a finite tip-angle bracket [lower, upper] with lower < upper",
             });
         }
+        self.solve_vertical(steps, [FRAC_PI_2 - upper, FRAC_PI_2 - lower])
+            .map_err(|e| match e {
+                ElasticaError::NoSignChange {
+                    lower_side,
+                    upper_side,
+                    ..
+                } => ElasticaError::NoSignChange {
+                    lower: bracket[0],
+                    upper: bracket[1],
+                    // the lower tip angle is the upper φ, and "φ(1) ≤ φ0"
+                    // (φ_tip small) is "θ(1) ≥ θ0" (above the clamp angle)
+                    lower_side: upper_side,
+                    upper_side: lower_side,
+                },
+                other => other,
+            })
+    }
+
+    /// [`Self::solve_fixed`] with the bracket given for `φ_tip = π/2 − θ_tip`
+    /// (`[small, large]`). Bisection runs down to adjacent floating-point
+    /// numbers of `φ_tip`.
+    fn solve_vertical(
+        &self,
+        steps: usize,
+        bracket: [f64; 2],
+    ) -> Result<CantileverSolution, ElasticaError> {
+        let [mut small, mut large] = bracket;
         let lambda = self.load_parameter();
-        let theta0 = self.clamp_angle;
-        // The clamp state of a shot that lands at or above θ0, else None.
-        let high = |tip_angle: f64| match self.shoot(tip_angle, lambda, steps) {
-            Shot::AtClamp(y) if y[0] >= theta0 => Some(y),
+        let phi0 = FRAC_PI_2 - self.clamp_angle;
+        // The clamp state of a shot that ends at or below φ0 (φ_tip not
+        // too large), else None.
+        let short = |phi_tip: f64| match self.shoot(phi_tip, lambda, steps) {
+            Shot::AtClamp(y) if y[0] <= phi0 => Some(y),
             _ => None,
         };
+        // In the words of θ: a shot ending at φ(1) ≤ φ0 lands at or above
+        // the clamp angle θ0.
         let side = |y: &Option<State>| if y.is_some() { "above" } else { "below" };
-        let at_lower = high(lower);
-        let at_upper = high(upper);
-        let (lower_side, upper_side) = (side(&at_lower), side(&at_upper));
-        // Bisection down to adjacent floating-point numbers (≤ 64 halvings
-        // of a bracket inside [0, π/2]; the cap only guards the loop). The
-        // upper end always shoots high and keeps its clamp state.
-        let (None, Some(mut y)) = (at_lower, at_upper) else {
+        let at_small = short(small);
+        let at_large = short(large);
+        let (small_side, large_side) = (side(&at_small), side(&at_large));
+        // Bisection down to adjacent floating-point numbers (≤ ~1100
+        // halvings even for a root in the subnormal range; ~60–90 in
+        // practice). The small end always falls short and keeps its state.
+        let (Some(mut y), None) = (at_small, at_large) else {
             return Err(ElasticaError::NoSignChange {
-                lower,
-                upper,
-                lower_side,
-                upper_side,
+                lower: small,
+                upper: large,
+                lower_side: small_side,
+                upper_side: large_side,
             });
         };
-        for _ in 0..200 {
-            let mid = 0.5 * (lower + upper);
-            if mid <= lower || mid >= upper {
+        for _ in 0..1200 {
+            let mid = 0.5 * (small + large);
+            if mid <= small || mid >= large {
                 break;
             }
-            match high(mid) {
+            match short(mid) {
                 Some(state) => {
-                    upper = mid;
+                    small = mid;
                     y = state;
                 }
-                None => lower = mid,
+                None => large = mid,
             }
         }
-        let tip_angle = upper;
         let l = self.length;
         Ok(CantileverSolution {
             tip_deflection: l * y[3],
             tip_x: l * y[2],
-            tip_angle,
+            tip_angle: FRAC_PI_2 - small,
+            tip_angle_from_vertical: small,
             clamp_moment: self.bending_stiffness * y[1] / l,
             steps,
             error_estimate: f64::NAN,
@@ -372,7 +415,7 @@ impl HeavyCantilever {
         let mut states: Vec<State> = vec![[0.0; 4]; arc_lengths.len()];
         // The solution's own grid (bit-identical to its shot), with a partial
         // step from the last grid point to each station.
-        let mut y: State = [solution.tip_angle, 0.0, 0.0, 0.0];
+        let mut y: State = [solution.tip_angle_from_vertical, 0.0, 0.0, 0.0];
         let mut done = 0usize;
         for &i in &order {
             let target = 1.0 - arc_lengths[i] / l;
@@ -400,30 +443,31 @@ impl HeavyCantilever {
                 arc_length: s,
                 x: l * (clamp[2] - y[2]),
                 z: -l * (clamp[3] - y[3]),
-                angle: y[0],
+                angle: FRAC_PI_2 - y[0],
             })
             .collect())
     }
 
     /// One shot from the tip with `steps` equal RK4 steps.
-    fn shoot(&self, tip_angle: f64, lambda: f64, steps: usize) -> Shot {
+    fn shoot(&self, phi_tip: f64, lambda: f64, steps: usize) -> Shot {
         let h = 1.0 / steps as f64;
-        let mut y: State = [tip_angle, 0.0, 0.0, 0.0];
+        let phi0 = FRAC_PI_2 - self.clamp_angle;
+        let mut y: State = [phi_tip, 0.0, 0.0, 0.0];
         for i in 0..steps {
             y = rk4_step(y, i as f64 * h, h, lambda);
-            if y[0] < self.clamp_angle && i + 1 < steps {
-                return Shot::Low;
+            if y[0] > phi0 && i + 1 < steps {
+                return Shot::Past;
             }
         }
         Shot::AtClamp(y)
     }
 }
 
-/// The right-hand side `d[θ, k, X, Z]/dτ = [−k, λ τ cos θ, cos θ, sin θ]`.
+/// The right-hand side `d[φ, k, X, Z]/dτ = [k, λ τ sin φ, sin φ, cos φ]`.
 #[inline]
 fn rhs(tau: f64, y: &State, lambda: f64) -> State {
     let (sin, cos) = y[0].sin_cos();
-    [-y[1], lambda * tau * cos, cos, sin]
+    [y[1], lambda * tau * sin, sin, cos]
 }
 
 /// One classical RK4 step of length `h` from `tau`.
