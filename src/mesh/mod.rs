@@ -12,6 +12,7 @@
 pub mod generate;
 pub mod inp;
 pub mod msh;
+pub mod shapes;
 
 use std::collections::BTreeMap;
 
