@@ -37,12 +37,8 @@ fn edit(text: &str, edits: &[(&str, &str)]) -> String {
 fn load(text: &str, dir: &Path) -> FormingCase {
     let path = dir.join("case.toml");
     fs::write(&path, text).unwrap();
-    FormingCase::from_toml_str(
-        text,
-        &path.display().to_string(),
-        &verification_case(""),
-    )
-    .unwrap_or_else(|e| panic!("{e}"))
+    FormingCase::from_toml_str(text, &path.display().to_string(), &verification_case(""))
+        .unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Runs a case into a fresh folder; the run must complete.
@@ -86,7 +82,11 @@ fn blankholder_at_rest_quasi_static() {
             row.load,
             holder.force
         );
-        assert!(holder.displacement.abs() <= 3e-3, "moved {}", holder.displacement);
+        assert!(
+            holder.displacement.abs() <= 3e-3,
+            "moved {}",
+            holder.displacement
+        );
     }
 }
 
@@ -177,7 +177,10 @@ fn friction_patch_slides_at_mu_n() {
     );
     // The normal force on the slope is G cos α.
     let normal = last.tools[0].force;
-    assert!((normal - WEIGHT * cos).abs() <= 1e-6 * WEIGHT, "normal {normal} N");
+    assert!(
+        (normal - WEIGHT * cos).abs() <= 1e-6 * WEIGHT,
+        "normal {normal} N"
+    );
 }
 
 fn case_nodes(summary: &FormingSummary) -> usize {
@@ -208,7 +211,12 @@ fn friction_patch_sticks_below_the_limit() {
     let summary = run(&case);
     let nodes = case_nodes(&summary);
     for row in &summary.history {
-        assert_eq!(row.contacts, Some((nodes, 0)), "λ = {}: all stick", row.load);
+        assert_eq!(
+            row.contacts,
+            Some((nodes, 0)),
+            "λ = {}: all stick",
+            row.load
+        );
         let moved = row.probes[0];
         assert!(
             moved.iter().all(|m| m.abs() <= 2.5e-6),
@@ -253,7 +261,10 @@ fn bad_forming_cases_name_key_value_and_expectation() {
             vec!["tool[1].mass", "(missing)", "a floating tool needs a mass"],
         ),
         (
-            edit(&base, &[("friction = 0.147\nextent", "friction = -0.1\nextent")]),
+            edit(
+                &base,
+                &[("friction = 0.147\nextent", "friction = -0.1\nextent")],
+            ),
             vec!["tool[0].friction", "-0.1", "≥ 0"],
         ),
         (
@@ -261,14 +272,23 @@ fn bad_forming_cases_name_key_value_and_expectation() {
             vec!["tool[0].shape", "\"cone\"", "\"plane\", \"sphere\""],
         ),
         (
-            edit(&base, &[("origin = [0.0, 0.0, 0.3]", "origin = [0.0, 0.0, 0.1]")]),
+            edit(
+                &base,
+                &[("origin = [0.0, 0.0, 0.3]", "origin = [0.0, 0.0, 0.1]")],
+            ),
             vec![
                 "tool \"blankholder\" starts inside ply \"ply\"",
                 "0.0500 mm inside",
             ],
         ),
         (
-            edit(&base, &[("direction = [0.0, 0.0, -1.0]", "direction = [0.0, 0.0, 0.0]")]),
+            edit(
+                &base,
+                &[(
+                    "direction = [0.0, 0.0, -1.0]",
+                    "direction = [0.0, 0.0, 0.0]",
+                )],
+            ),
             vec!["tool[1].direction", "[0, 0, 0]", "a non-zero direction"],
         ),
         (

@@ -65,7 +65,7 @@ struct PlyRaw {
     thickness: Option<Spanned<f64>>,
     areal_mass: Option<Spanned<f64>>,
     fibre_angle_deg: Option<Spanned<f64>>,
-    bending: Option<Spanned<BendingRaw>>,
+    bending: Option<BendingRaw>,
     mesh: PlyMeshRaw,
 }
 
@@ -80,9 +80,9 @@ enum BendingRaw {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct BendingTableRaw {
-    b11: Option<Spanned<f64>>,
-    b22: Option<Spanned<f64>>,
-    b66: Option<Spanned<f64>>,
+    b11: Option<f64>,
+    b22: Option<f64>,
+    b66: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -168,6 +168,7 @@ struct ContactRaw {
     gap_tolerance: Option<Spanned<f64>>,
     multiplier_tolerance: Option<Spanned<f64>>,
     explicit_stiffness: Option<Spanned<f64>>,
+    explicit_damping: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -404,6 +405,9 @@ pub struct ContactSettings {
     /// Explicit penalty as a fraction of the central-difference limit
     /// `4m/Δt²` of each node.
     pub explicit_stiffness: f64,
+    /// Explicit normal contact damping, a fraction of the critical damping
+    /// of each node's penalty spring.
+    pub explicit_damping: f64,
 }
 
 impl Default for ContactSettings {
@@ -415,6 +419,7 @@ impl Default for ContactSettings {
             gap_tolerance: None,
             multiplier_tolerance: 1e-3,
             explicit_stiffness: 0.1,
+            explicit_damping: 0.2,
         }
     }
 }
@@ -592,18 +597,19 @@ impl FormingCase {
             };
             let bending = match &p.bending {
                 None => Some(PAPER_BENDING),
-                Some(b) => match b.get_ref() {
+                Some(b) => match b {
                     BendingRaw::Switch(false) => None,
                     BendingRaw::Switch(true) => Some(PAPER_BENDING),
                     BendingRaw::Table(t) => {
-                        let value = |v: &Option<Spanned<f64>>, k: &str, default: f64| match v {
+                        let value = |v: &Option<f64>, k: &str, default: f64| match v {
                             None => Ok(default),
-                            Some(v) => check.range(
-                                v,
+                            Some(x) if x.is_finite() && *x >= 0.0 => Ok(*x),
+                            Some(x) => Err(check.invalid(
+                                0,
                                 &key(&format!("bending.{k}")),
-                                |x| x >= 0.0,
+                                format!("{x}"),
                                 "a bending stiffness ≥ 0 N·mm",
-                            ),
+                            )),
                         };
                         Some([
                             value(&t.b11, "b11", PAPER_BENDING[0])?,
@@ -795,6 +801,14 @@ impl FormingCase {
             if let Some(v) = &c.multiplier_tolerance {
                 contact.multiplier_tolerance =
                     positive(v, "contact.multiplier_tolerance", "a fraction > 0")?;
+            }
+            if let Some(v) = &c.explicit_damping {
+                contact.explicit_damping = check.range(
+                    v,
+                    "contact.explicit_damping",
+                    |x| (0.0..=1.0).contains(&x),
+                    "a fraction in [0, 1] of the critical damping",
+                )?;
             }
             if let Some(v) = &c.explicit_stiffness {
                 contact.explicit_stiffness = check.range(

@@ -12,12 +12,13 @@ use crate::contact::{
     Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole, RigidSurface,
     Side, Sphere, Tessellation, Torus,
 };
+use crate::element::BendingStiffness;
 use crate::material::{FibreFrame, MembraneMaterial, Sym2};
 use crate::mesh::Mesh;
 use crate::mesh::generate::{GridPattern, OatSpecimen, oat_specimen};
 use crate::model::{
-    ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model, RigidBodyMass,
-    ToolContact,
+    BendingTerm, ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model,
+    RigidBodyMass, ToolContact,
 };
 use crate::solver::{Dirichlet, DofMap};
 
@@ -239,8 +240,40 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
             }
             mesh
         }
-        PlyMesh::Disk { .. } | PlyMesh::WrappedStrip { .. } => {
-            return Err(context(&"this mesh shape is not available in this build"));
+        PlyMesh::Disk {
+            radius,
+            centre,
+            element_size,
+        } => {
+            let mut mesh =
+                crate::mesh::shapes::disk(*radius, *element_size).map_err(|e| context(&e))?;
+            for x in &mut mesh.nodes {
+                *x += centre;
+            }
+            // The generator's fibres run along x: turn them to the ply's angle.
+            mesh.fibres.clear();
+            mesh
+        }
+        PlyMesh::WrappedStrip {
+            radius,
+            wrap_angle_deg,
+            tail_length,
+            width,
+            element_size,
+            centre,
+        } => {
+            let mut mesh = crate::mesh::shapes::wrapped_strip(&crate::mesh::shapes::WrappedStrip {
+                width: *width,
+                radius: *radius,
+                wrap_angle: wrap_angle_deg.to_radians(),
+                tail_length: *tail_length,
+                element_size: *element_size,
+            })
+            .map_err(|e| context(&e))?;
+            for x in &mut mesh.nodes {
+                *x += centre;
+            }
+            mesh
         }
     };
     if mesh.fibres.is_empty() {
@@ -355,11 +388,47 @@ impl FormingCase {
             boundary_nodes.push(global);
         }
 
+        // Bending per ply, with a fixed rotation on edges whose nodes are in
+        // a boundary set with rotation = "clamped".
+        let mut clamped = vec![false; nodes.len()];
+        for (b, set) in self.boundaries.iter().zip(&boundary_nodes) {
+            if b.clamp_rotation {
+                for &n in set {
+                    clamped[n] = true;
+                }
+            }
+        }
+        for (ply, spec) in plies.iter().zip(&self.plies) {
+            let Some([b11, b22, b66]) = spec.bending else {
+                continue;
+            };
+            let stiffness = BendingStiffness::new(b11, b22, b66)
+                .map_err(|e| format!("{}: ply \"{}\": bending: {e}", self.source, spec.name))?;
+            let name = if self.plies.len() == 1 {
+                "bending".to_string()
+            } else {
+                format!("bending of {}", spec.name)
+            };
+            let term = BendingTerm::new(
+                name,
+                &nodes,
+                &ply.membrane.triangles,
+                &ply.mesh.fibres,
+                &clamped,
+                stiffness,
+            )
+            .map_err(|e| format!("{}: ply \"{}\": bending: {e}", self.source, spec.name))?;
+            model.add(term);
+        }
+
         let mut probe_nodes = Vec::new();
         for p in &self.probes {
             let ply = &plies[p.ply];
             let set = ply.mesh.node_set(&p.nodes).map_err(|e| {
-                format!("{}:{}: probe on ply \"{}\": {e}", self.source, p.line, ply.name)
+                format!(
+                    "{}:{}: probe on ply \"{}\": {e}",
+                    self.source, p.line, ply.name
+                )
             })?;
             probe_nodes.push(set.iter().map(|n| n + ply.node_offset).collect());
         }
@@ -513,6 +582,7 @@ impl FormingCase {
                             .unwrap_or(0.01 * ply_spec.thickness),
                         multiplier_tolerance: self.contact.multiplier_tolerance,
                         explicit_stiffness: self.contact.explicit_stiffness,
+                        explicit_damping: self.contact.explicit_damping,
                     },
                 ));
             }

@@ -75,6 +75,9 @@ pub struct ContactOptions {
     /// Explicit penalty as a fraction of each node's central-difference
     /// limit `4 m / Δt²`.
     pub explicit_stiffness: f64,
+    /// Explicit normal contact damping as a fraction of the critical
+    /// damping `2 √(k_N m)` of each node's penalty spring.
+    pub explicit_damping: f64,
 }
 
 /// The contact of a set of ply nodes with one rigid tool.
@@ -94,6 +97,13 @@ pub struct ToolContact {
     responses: Vec<ImplicitResponse>,
     explicit: Vec<PenaltyState>,
     springs: Vec<PenaltyContact>,
+    /// Per node: the normal dashpot `c = ζ 2 √(k_N m)` [N·s/mm].
+    dashpots: Vec<f64>,
+    /// Per node: energy dissipated by the normal dashpot [N·mm] and its
+    /// force on the node at the last increment [N] (the dissipation is the
+    /// trapezoidal work `−½ (F_{n−1} + F_n)·Δy`, the rule the solver's
+    /// balance follows).
+    damped: Vec<(f64, Vector3<f64>)>,
     /// Per node: the last explicit curvature bound of the tool there.
     curvatures: Vec<f64>,
     partials: Vec<f64>,
@@ -138,6 +148,8 @@ impl ToolContact {
             responses: vec![ImplicitResponse::default_open(); n],
             explicit,
             springs: Vec::new(),
+            dashpots: Vec::new(),
+            damped: vec![(0.0, Vector3::zeros()); n],
             curvatures: vec![0.0; n],
             partials: vec![0.0; n.div_ceil(NODE_CHUNK)],
             outputs: vec![
@@ -414,7 +426,9 @@ impl Term for ToolContact {
                 self.offsets[i],
             )
             .map_err(|e| self.failure(i, e.to_string()))?;
+            let critical = 2.0 * (spring.normal_stiffness() * m).sqrt();
             springs.push(spring);
+            self.dashpots.push(self.options.explicit_damping * critical);
         }
         self.springs = springs;
         self.explicit = (0..self.nodes.len())
@@ -430,61 +444,86 @@ impl Term for ToolContact {
         let (node_out, tool_out) = out.split_at_mut(4 * n);
         let surface = &*self.surface;
         let direction = self.direction;
-        let (nodes, reference, offsets, springs) =
-            (&self.nodes, &self.reference, &self.offsets, &self.springs);
+        let (nodes, reference, offsets, springs, dashpots) = (
+            &self.nodes,
+            &self.reference,
+            &self.offsets,
+            &self.springs,
+            &self.dashpots,
+        );
+        let dt = state.time_step;
         let q = u[3 * self.model_nodes + self.extra];
         node_out
             .par_chunks_mut(4 * NODE_CHUNK)
             .zip(self.explicit.par_chunks_mut(NODE_CHUNK))
             .zip(self.outputs.par_chunks_mut(NODE_CHUNK))
             .zip(self.curvatures.par_chunks_mut(NODE_CHUNK))
+            .zip(self.damped.par_chunks_mut(NODE_CHUNK))
             .zip(self.partials.par_iter_mut())
             .enumerate()
-            .for_each(|(chunk, ((((f, states), outputs), curvatures), partial))| {
-                let mut sum = 0.0;
-                for (j, (((fi, s), o), c)) in f
-                    .chunks_exact_mut(4)
-                    .zip(states.iter_mut())
-                    .zip(outputs.iter_mut())
-                    .zip(curvatures.iter_mut())
-                    .enumerate()
-                {
-                    let i = chunk * NODE_CHUNK + j;
-                    let node = nodes[i];
-                    let y = reference[i]
-                        + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
-                        - q * direction;
-                    let point: Option<SurfacePoint> = surface.closest(&y, offsets[i] + CULL_MARGIN);
-                    if point.is_none()
-                        && s.status == ContactStatus::Open
-                        && s.spring == Vector3::zeros()
+            .for_each(
+                |(chunk, (((((f, states), outputs), curvatures), damped), partial))| {
+                    let mut sum = 0.0;
+                    for (j, ((((fi, s), o), c), dissipated)) in f
+                        .chunks_exact_mut(4)
+                        .zip(states.iter_mut())
+                        .zip(outputs.iter_mut())
+                        .zip(curvatures.iter_mut())
+                        .zip(damped.iter_mut())
+                        .enumerate()
                     {
-                        s.previous_position = y;
-                        fi.fill(0.0);
-                        o.status = 0;
-                        o.normal_force = 0.0;
-                        o.friction_force = 0.0;
-                        continue;
-                    }
-                    match springs[i].update(s, &y, point.as_ref()) {
-                        Ok(r) => {
-                            fi[..3].copy_from_slice(r.residual.as_slice());
-                            fi[3] = 0.0;
-                            sum -= direction.dot(&r.residual);
-                            o.status = status_code(r.status);
-                            o.normal_force = r.normal_force;
-                            o.friction_force = r.tangential_force.norm();
-                            o.gap = r.gap;
-                            o.slip = s.slip_length;
-                            *c = point.map_or(0.0, |p| max_curvature(&p.hessian));
+                        let i = chunk * NODE_CHUNK + j;
+                        let node = nodes[i];
+                        let y = reference[i]
+                            + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
+                            - q * direction;
+                        let point: Option<SurfacePoint> =
+                            surface.closest(&y, offsets[i] + CULL_MARGIN);
+                        if point.is_none()
+                            && s.status == ContactStatus::Open
+                            && s.spring == Vector3::zeros()
+                        {
+                            s.previous_position = y;
+                            fi.fill(0.0);
+                            o.status = 0;
+                            o.normal_force = 0.0;
+                            o.friction_force = 0.0;
+                            continue;
                         }
-                        Err(_) => {
-                            first_failure.fetch_min(i, Ordering::Relaxed);
+                        let motion = y - s.previous_position;
+                        match springs[i].update(s, &y, point.as_ref()) {
+                            Ok(r) => {
+                                let mut residual = r.residual;
+                                // Normal dashpot on the approach velocity while in
+                                // contact, never pulling the node onto the tool.
+                                let mut dashpot = Vector3::zeros();
+                                if r.gap < 0.0 && dt > 0.0 && dashpots[i] > 0.0 {
+                                    let approach = -r.normal.dot(&motion);
+                                    let force = (dashpots[i] * approach / dt).max(-r.normal_force);
+                                    dashpot = force * r.normal;
+                                    residual -= dashpot;
+                                }
+                                let (energy, previous) = dissipated;
+                                *energy -= 0.5 * (*previous + dashpot).dot(&motion);
+                                *previous = dashpot;
+                                fi[..3].copy_from_slice(residual.as_slice());
+                                fi[3] = 0.0;
+                                sum -= direction.dot(&residual);
+                                o.status = status_code(r.status);
+                                o.normal_force = r.normal_force;
+                                o.friction_force = r.tangential_force.norm();
+                                o.gap = r.gap;
+                                o.slip = s.slip_length;
+                                *c = point.map_or(0.0, |p| max_curvature(&p.hessian));
+                            }
+                            Err(_) => {
+                                first_failure.fetch_min(i, Ordering::Relaxed);
+                            }
                         }
                     }
-                }
-                *partial = sum;
-            });
+                    *partial = sum;
+                },
+            );
         if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
             return Err(self.failure(i, "the contact kernel rejected the state".into()));
         }
@@ -542,9 +581,13 @@ impl Term for ToolContact {
                 ..Default::default()
             });
         }
-        let (contact, dissipated) = self.explicit.iter().fold((0.0, 0.0), |(e, d), s| {
-            (e + s.stored_energy(), d + s.dissipated)
-        });
+        let (contact, dissipated) = self
+            .explicit
+            .iter()
+            .zip(&self.damped)
+            .fold((0.0, 0.0), |(e, d), (s, (damped, _))| {
+                (e + s.stored_energy(), d + s.dissipated + damped)
+            });
         Ok(TermEnergy {
             contact,
             dissipated,

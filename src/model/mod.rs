@@ -6,11 +6,13 @@
 //! [`Term`] interface; which terms exist is the case layer's business
 //! (`docs/model.md`).
 
+pub mod bending;
 pub mod contact;
 pub mod loads;
 pub mod membrane;
 pub mod term;
 
+pub use bending::{BendingSetupError, BendingTerm};
 pub use contact::{ContactOptions, NodeContact, ToolContact};
 pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};

@@ -48,6 +48,9 @@ pub struct State<'a> {
     /// `λ / λ_final` in `[0, 1]`: the fraction of the load programme, which
     /// ramped loads follow.
     pub load_fraction: f64,
+    /// The time increment that led to this state [s] (explicit path; 0 on
+    /// the quasi-static path and at the start).
+    pub time_step: f64,
 }
 
 impl<'a> State<'a> {
@@ -58,6 +61,7 @@ impl<'a> State<'a> {
             u,
             load: 0.0,
             load_fraction: 0.0,
+            time_step: 0.0,
         }
     }
 }

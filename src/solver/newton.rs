@@ -263,6 +263,7 @@ impl Newton<'_> {
             u,
             load: self.load,
             load_fraction: self.load_fraction,
+            time_step: 0.0,
         }
     }
 

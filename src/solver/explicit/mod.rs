@@ -249,12 +249,14 @@ pub fn solve_explicit(
     })
 }
 
-/// The state of the terms at displacement `u`, load and programme fraction.
+/// The state of the terms at displacement `u`, load and programme
+/// fraction, reached by a step `time_step` [s].
 fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
     State {
         u,
         load,
         load_fraction,
+        time_step: 0.0,
     }
 }
 
@@ -444,7 +446,14 @@ fn integrate(
 
         let clock = Instant::now();
         let now = (load_next, fraction_at(time));
-        let pass = system.element_forces(model, &state_at(u, now), &mut buffers.forces);
+        let pass = system.element_forces(
+            model,
+            &State {
+                time_step: dt,
+                ..state_at(u, now)
+            },
+            &mut buffers.forces,
+        );
         timings.element_pass += clock.elapsed().as_secs_f64();
         if let Err(failure) = pass {
             break RunStatus::Incomplete {
