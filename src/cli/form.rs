@@ -117,6 +117,8 @@ pub struct FormingSummary {
     pub explicit: Option<ExplicitFigures>,
     /// Time split of the solve [s].
     pub timings: Timings,
+    /// Quasi-static: of the assembly time, each term's evaluation [s].
+    pub term_seconds: Vec<(String, f64)>,
     /// Time writing outputs [s].
     pub output_seconds: f64,
     /// Wall time of the whole run [s].
@@ -615,6 +617,7 @@ pub fn run_forming(
         augmentations: report.augmentations,
         explicit: report.explicit,
         timings: report.timings,
+        term_seconds: report.term_seconds,
         output_seconds: sink.seconds,
         wall_seconds: wall.elapsed().as_secs_f64(),
         history: std::mem::take(&mut sink.history),
@@ -635,6 +638,7 @@ struct Report {
     timings: Timings,
     explicit: Option<ExplicitFigures>,
     records: Option<Vec<ExplicitRecord>>,
+    term_seconds: Vec<(String, f64)>,
 }
 
 fn run_quasi_static(
@@ -683,6 +687,7 @@ fn run_quasi_static(
         timings: Timings::QuasiStatic(result.timings),
         explicit: None,
         records: None,
+        term_seconds: result.term_seconds,
     })
 }
 
@@ -752,6 +757,7 @@ fn run_explicit(
             warnings: result.warnings.clone(),
         }),
         records: Some(result.records),
+        term_seconds: Vec::new(),
     })
 }
 

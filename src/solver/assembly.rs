@@ -5,6 +5,8 @@
 //! into the term's own buffers), then scatters serially in term and
 //! stencil order (so the result does not depend on the thread count).
 
+use std::time::Instant;
+
 use faer::sparse::SymbolicSparseColMat;
 
 use super::dofs::DofMap;
@@ -63,6 +65,8 @@ pub struct Assembler {
     /// Symbolic structure of the free-dof tangent (CSC, sorted rows).
     pub symbolic: SymbolicSparseColMat<usize>,
     terms: Vec<TermBuffers>,
+    /// Wall time spent in each term's evaluation [s], by term.
+    pub term_seconds: Vec<(String, f64)>,
 }
 
 impl Assembler {
@@ -131,6 +135,11 @@ impl Assembler {
             dofs,
             symbolic,
             terms,
+            term_seconds: model
+                .terms
+                .iter()
+                .map(|t| (t.name().to_string(), 0.0))
+                .collect(),
         }
     }
 
@@ -152,8 +161,15 @@ impl Assembler {
     ) -> Result<f64, TermFailure> {
         internal.fill(0.0);
         let mut energy = 0.0;
-        for (term, buffers) in model.terms.iter_mut().zip(&mut self.terms) {
+        for ((term, buffers), seconds) in model
+            .terms
+            .iter_mut()
+            .zip(&mut self.terms)
+            .zip(&mut self.term_seconds)
+        {
+            let clock = Instant::now();
             energy += term.evaluate(state, &mut buffers.force, None)?;
+            seconds.1 += clock.elapsed().as_secs_f64();
             for (f, &d) in buffers.force.iter().zip(&buffers.dofs) {
                 if d != NONE {
                     internal[d] += f;
@@ -178,8 +194,15 @@ impl Assembler {
         internal.fill(0.0);
         values.fill(0.0);
         let mut energy = 0.0;
-        for (term, buffers) in model.terms.iter_mut().zip(&mut self.terms) {
+        for ((term, buffers), seconds) in model
+            .terms
+            .iter_mut()
+            .zip(&mut self.terms)
+            .zip(&mut self.term_seconds)
+        {
+            let clock = Instant::now();
             energy += term.evaluate(state, &mut buffers.force, Some(&mut buffers.tangent))?;
+            seconds.1 += clock.elapsed().as_secs_f64();
             let size = buffers.size;
             if size == 0 {
                 continue;

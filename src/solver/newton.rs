@@ -182,6 +182,8 @@ pub struct QuasiStaticResult {
     pub linear_solver: LinearSolverKind,
     /// Newton solves beyond the first per step, summed over the run.
     pub augmentations: usize,
+    /// Of the assembly time, the part each term took to evaluate [s].
+    pub term_seconds: Vec<(String, f64)>,
 }
 
 /// Why one attempt at a load step failed.
@@ -735,5 +737,6 @@ pub fn solve_quasi_static(
         nonzeros,
         linear_solver,
         augmentations: total_augmentations,
+        term_seconds: newton.assembler.term_seconds.clone(),
     })
 }
