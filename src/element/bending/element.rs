@@ -6,7 +6,8 @@
 //! Notation (own triangle, current positions `x_0, x_1, x_2`): edge vectors
 //! `e_k = x_{k+2} − x_{k+1}` (edge `k` is opposite node `k`, run
 //! counter-clockwise), `N = e_0 × e_1 = 2A n`, lengths `l_k = |e_k|`,
-//! `J = |N| / (2 A0)`, `ρ_i = J / l_i`, hinge measures `θ̂_i`, `φ_i = θ̂_i ρ_i`,
+//! `J = |N| / (2 A0)`, `ρ_i = J / l_i`, hinge measures `θ̂_i` (`2 sin(θ_i/2)`
+//! on interior edges, `2 sin θ_i` on clamped ones), `φ_i = θ̂_i ρ_i`,
 //! curvature `K = Σ_i φ_i c_i` (Voigt `[K11, K22, 2K12]` in the reference
 //! fibre basis), `ΔK = K − K0`, energy `W = A0 ½ ΔKᵀ D ΔK`.
 
@@ -16,8 +17,8 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::{
-    BendingError, BendingStiffness, DEGENERATE_AREA, FOLD_LIMIT, HingeKind, MIN_FIBRE_PROJECTION,
-    StencilMatrix, StencilVector,
+    BendingError, BendingStiffness, CLAMP_LIMIT, DEGENERATE_AREA, FOLD_LIMIT, HingeKind,
+    MIN_FIBRE_PROJECTION, StencilMatrix, StencilVector,
 };
 
 type V3 = Vector3<f64>;
@@ -49,7 +50,9 @@ pub struct BendingCurvature {
     pub curvature: [f64; 3],
     /// `ΔK = K − K0` [1/mm], same storage.
     pub change: [f64; 3],
-    /// The hinge measures `θ̂_i = 2 sin(θ_i/2)` (zero on free edges).
+    /// The hinge measures: `θ̂_i = 2 sin(θ_i/2)` on interior edges,
+    /// `m_c = 2 sin θ_i` on clamped edges (the measure of the mirror angle
+    /// `2θ_i`, docs/bending.md, Eq. (2c)), zero on free edges.
     pub hinge_measures: [f64; 3],
 }
 
@@ -170,10 +173,13 @@ struct Hinge {
     partner: Option<Triangle>,
     /// Stencil slots of the partner triangle's nodes (`None`: the ghost).
     partner_slots: [Option<usize>; 3],
-    /// `θ̂ = 2 sin(θ/2)`.
+    /// The hinge measure: `θ̂ = 2 sin(θ/2)` (neighbour) or
+    /// `m_c = 2 sin θ` (clamped).
     measure: f64,
-    /// `dθ̂/dθ = cos(θ/2)`.
-    half_cos: f64,
+    /// Its first derivative: `cos(θ/2)` (neighbour) or `2 cos θ` (clamped).
+    slope: f64,
+    /// Its second derivative: `−θ̂/4` (neighbour) or `−m_c` (clamped).
+    bend: f64,
 }
 
 /// Everything the kernels share, at one state.
@@ -199,14 +205,31 @@ fn hinge_angle(own: &Triangle, i: usize, partner: &Triangle) -> (f64, f64) {
     (partner.n.cross(&own.n).dot(&edge), own.n.dot(&partner.n))
 }
 
-/// `θ̂ = sin θ √(2/(1 + cos θ))` and `cos(θ/2) = √((1 + cos θ)/2)`.
-fn hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64), BendingError> {
+/// The measure of an interior hinge and its first two derivatives in `θ`
+/// (docs/bending.md, Eq. (2)): `θ̂ = sin θ √(2/(1 + cos θ)) = 2 sin(θ/2)`,
+/// `cos(θ/2) = √((1 + cos θ)/2)`, `−θ̂/4`.
+fn hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64, f64), BendingError> {
     let one_plus_cos = 1.0 + cos;
     if one_plus_cos.is_nan() || one_plus_cos <= FOLD_LIMIT {
         return Err(BendingError::FoldedHinge { edge, one_plus_cos });
     }
     let half_cos = (0.5 * one_plus_cos).sqrt();
-    Ok((sin / half_cos, half_cos))
+    let measure = sin / half_cos;
+    Ok((measure, half_cos, -0.25 * measure))
+}
+
+/// The measure of a clamped hinge and its first two derivatives in `θ`
+/// (docs/bending.md, Eq. (2c)): the measure of the angle `2θ` between the
+/// element and its mirror image across the clamp plane,
+/// `m_c = 2 sin(2θ/2) = 2 sin θ`, `2 cos θ`, `−2 sin θ`. Past `90°` the
+/// measure falls again and the clamp would let go: states with
+/// `cos θ ≤ CLAMP_LIMIT` are rejected.
+fn clamped_hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64, f64), BendingError> {
+    if cos.is_nan() || cos <= CLAMP_LIMIT {
+        return Err(BendingError::OverturnedClamp { edge, cos });
+    }
+    let measure = 2.0 * sin;
+    Ok((measure, 2.0 * cos, -measure))
 }
 
 /// Largest eigenvalue of a symmetric 3×3 matrix (trigonometric closed form:
@@ -336,7 +359,8 @@ impl BendingElement {
             partner: None,
             partner_slots: [None; 3],
             measure: 0.0,
-            half_cos: 1.0,
+            slope: 1.0,
+            bend: 0.0,
         }; 3];
         let mut rho = [0.0; 3];
         let mut phi = [0.0; 3];
@@ -350,12 +374,17 @@ impl BendingElement {
                     });
                 }
                 let (sin, cos) = hinge_angle(&own, i, &partner);
-                let (measure, half_cos) = hinge_measure(i, sin, cos)?;
+                let (measure, slope, bend) = if self.kinds[i] == HingeKind::Clamped {
+                    clamped_hinge_measure(i, sin, cos)?
+                } else {
+                    hinge_measure(i, sin, cos)?
+                };
                 hinges[i] = Hinge {
                     partner: Some(partner),
                     partner_slots: slots,
                     measure,
-                    half_cos,
+                    slope,
+                    bend,
                 };
                 phi[i] = measure * rho[i];
             }
@@ -390,7 +419,8 @@ impl BendingElement {
     ///
     /// # Errors
     /// A non-finite position, a degenerate own or partner triangle, a
-    /// completely folded hinge.
+    /// completely folded hinge, a clamped hinge turned to or past 90°
+    /// ([`BendingError::OverturnedClamp`]).
     pub fn curvature(&self, x: &[V3; 6]) -> Result<BendingCurvature, BendingError> {
         let s = self.state(x, &BendingStiffness::new(0.0, 0.0, 0.0)?)?;
         Ok(BendingCurvature {
@@ -437,13 +467,14 @@ impl BendingElement {
         (grad_theta, grad_rho)
     }
 
-    /// `∂φ_i/∂x = ρ_i cos(θ_i/2) ∂θ_i/∂x + θ̂_i ∂ρ_i/∂x` (Eq. (8)).
+    /// `∂φ_i/∂x = ρ_i m'(θ_i) ∂θ_i/∂x + m_i ∂ρ_i/∂x` (Eq. (8); `m' = cos(θ/2)`
+    /// on interior hinges, `2 cos θ` on clamped ones).
     fn phi_gradient(s: &State, i: usize, grads: &(StencilVector, StencilVector)) -> StencilVector {
         let h = &s.hinges[i];
         if h.partner.is_none() {
             return StencilVector::zeros();
         }
-        grads.0 * (s.rho[i] * h.half_cos) + grads.1 * h.measure
+        grads.0 * (s.rho[i] * h.slope) + grads.1 * h.measure
     }
 
     /// Energy and internal force `∂W_e/∂x = Σ_i μ_i ∂φ_i/∂x` [N] at the
@@ -502,9 +533,9 @@ impl BendingElement {
                 continue;
             };
             let (grad_theta, grad_rho) = grads;
-            let (rho, measure, half_cos) = (s.rho[i], hinge.measure, hinge.half_cos);
-            // ρ ∇²θ̂ = ρ (cos(θ/2) ∇²θ − θ̂/4 ∇θ∇θᵀ).
-            let theta_scale = mu * rho * half_cos;
+            let (rho, measure, slope) = (s.rho[i], hinge.measure, hinge.slope);
+            // ρ ∇²m = ρ (m' ∇²θ + m'' ∇θ∇θᵀ), m'' = −θ̂/4 or −m_c (Eq. (11)).
+            let theta_scale = mu * rho * slope;
             let own_jac = s.own.hinge_jacobian(i);
             for a in 0..3 {
                 for b in 0..3 {
@@ -519,9 +550,9 @@ impl BendingElement {
                     }
                 }
             }
-            k -= grad_theta * grad_theta.transpose() * (mu * rho * 0.25 * measure);
-            // ∇θ̂ ∇ρᵀ + ∇ρ ∇θ̂ᵀ.
-            let cross = grad_theta * grad_rho.transpose() * (mu * half_cos);
+            k += grad_theta * grad_theta.transpose() * (mu * rho * hinge.bend);
+            // ∇m ∇ρᵀ + ∇ρ ∇mᵀ.
+            let cross = grad_theta * grad_rho.transpose() * (mu * slope);
             k += cross + cross.transpose();
             // θ̂ ∇²ρ.
             let rho_hess = self.rho_hessian(&s, i);
@@ -616,7 +647,7 @@ impl BendingElement {
                 continue;
             };
             let (grad_theta, grad_rho) = grads;
-            let (rho, measure, half_cos) = (s.rho[i], hinge.measure, hinge.half_cos);
+            let (rho, measure, slope) = (s.rho[i], hinge.measure, hinge.slope.abs());
             // ‖∇²θ‖_M from block norms over the hinge's slots.
             let mut blocks = [[0.0; 6]; 6];
             let own_bounds = s.own.hinge_jacobian_bounds(i);
@@ -637,10 +668,10 @@ impl BendingElement {
             let grad_theta_m2 = mass_norm_squared(&grad_theta, masses, &used);
             let grad_rho_m = mass_norm_squared(&grad_rho, masses, &used).sqrt();
             let rho_norm = self.rho_hessian_bound(&s, i, masses);
-            let bound = rho * half_cos * theta_norm
-                + rho * 0.25 * measure.abs() * grad_theta_m2
+            let bound = rho * slope * theta_norm
+                + rho * hinge.bend.abs() * grad_theta_m2
                 + measure.abs() * rho_norm
-                + 2.0 * half_cos * grad_theta_m2.sqrt() * grad_rho_m;
+                + 2.0 * slope * grad_theta_m2.sqrt() * grad_rho_m;
             rest += s.mu[i].abs() * bound;
         }
         // Gauss–Newton part: A0 λmax(D^½ C G Cᵀ D^½), G = Φᵀ M⁻¹ Φ.

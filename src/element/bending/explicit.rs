@@ -9,7 +9,8 @@
 //!    clamped edges).
 //! 2. [`BendingPass::moments`]: per element, the hinge measures from the
 //!    partners' normals, `ΔK`, `μ_i = ∂W/∂φ_i`, the per-edge moments
-//!    `P_{e,i} = l_i ∂W_e/∂θ_i = μ_i J cos(θ_i/2)`, and the forces of
+//!    `P_{e,i} = l_i ∂W_e/∂θ_i = μ_i J m'(θ_i)` (`m' = cos(θ_i/2)`, or
+//!    `2 cos θ_i` on a clamped edge), and the forces of
 //!    everything the element's own energy gives its own nodes: the area-ratio
 //!    and edge-length terms and its own moments' hinge terms.
 //! 3. [`BendingPass::hinge_forces`]: per element, the partners' moments on
@@ -36,7 +37,7 @@ use rayon::prelude::*;
 
 use super::element::BendingElement;
 use super::topology::BendingTopology;
-use super::{BendingStiffness, FOLD_LIMIT, HingeKind, TopologyError};
+use super::{BendingStiffness, CLAMP_LIMIT, FOLD_LIMIT, HingeKind, TopologyError};
 use crate::material::lanes::Real;
 
 /// Elements per batch (one AVX2 register of `f64`).
@@ -65,6 +66,8 @@ struct ElementBatch {
     partner_moment: [[u32; LANES]; 3],
     /// 1 for an edge with a hinge, 0 for a free edge.
     active: [Lanes; 3],
+    /// 1 for a clamped edge (measure `2 sin θ`), 0 otherwise.
+    clamped: [Lanes; 3],
     /// `c_i` (Voigt, 3 per edge).
     coefficients: [Lanes; 9],
     /// `K0`.
@@ -91,7 +94,8 @@ pub struct GeometryBatch {
 /// Phase-2 output of a batch.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HingeBatch {
-    /// `P_{e,i} = μ_i J cos(θ_i/2)` [N·mm²] (zero on free edges).
+    /// `P_{e,i} = μ_i J m'(θ_i)` [N·mm²] (`m' = cos(θ_i/2)`, `2 cos θ_i` on
+    /// clamped edges; zero on free edges).
     moments: [Lanes; 3],
     /// `1/l_i²`.
     inv_length2: [Lanes; 3],
@@ -142,11 +146,14 @@ pub struct BendingScratch {
 }
 
 /// The first element whose bending force could not be computed: a hinge
-/// completely folded (`1 + cos θ ≤ FOLD_LIMIT`) or a non-finite result
-/// (collapsed triangle). [`BendingPass::positions`] and the reference
-/// kernels name the cause.
+/// completely folded (`1 + cos θ ≤ FOLD_LIMIT`), a clamped hinge turned to
+/// or past 90° about its clamp line (`cos θ ≤ CLAMP_LIMIT`) or a
+/// non-finite result (collapsed triangle). [`BendingPass::positions`] and
+/// the reference kernels name the cause.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("bending element {element}: a hinge is folded onto itself or the triangle has collapsed")]
+#[error(
+    "bending element {element}: a hinge is folded onto itself, a clamped hinge is turned past 90° or the triangle has collapsed"
+)]
 pub struct BendingFailure {
     /// The element (triangle) index.
     pub element: usize,
@@ -240,6 +247,7 @@ impl BendingPass {
                 partner_normal: [[0; LANES]; 3],
                 partner_moment: [[NONE; LANES]; 3],
                 active: [[0.0; LANES]; 3],
+                clamped: [[0.0; LANES]; 3],
                 coefficients: [[0.0; LANES]; 9],
                 reference_curvature: [[0.0; LANES]; 3],
                 moduli: [[0.0; LANES]; 3],
@@ -270,6 +278,7 @@ impl BendingPass {
                         (HingeKind::Clamped, _) => {
                             batch.partner_normal[i][l] = GHOST + ghost_of[e][i];
                             batch.active[i][l] = 1.0;
+                            batch.clamped[i][l] = 1.0;
                         }
                         _ => batch.partner_normal[i][l] = e as u32,
                     }
@@ -421,8 +430,8 @@ impl BendingPass {
     /// these batches, `forces.len() = min(LANES·len, count − LANES·first)`).
     ///
     /// # Errors
-    /// The first element of these batches with a folded hinge or a
-    /// non-finite result.
+    /// The first element of these batches with a folded hinge, a clamped
+    /// hinge turned to or past 90° or a non-finite result.
     #[allow(clippy::too_many_arguments)]
     pub fn moments(
         &self,
@@ -562,7 +571,8 @@ impl BendingPass {
     /// over chunks of batches, a barrier between the phases.
     ///
     /// # Errors
-    /// The first element with a folded hinge or a non-finite result.
+    /// The first element with a folded hinge, a clamped hinge turned to or
+    /// past 90° or a non-finite result.
     pub fn add_forces(
         &self,
         u: &[f64],
@@ -738,7 +748,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     let outward = [vcross(&e[0], &n), vcross(&e[1], &n), vcross(&e[2], &n)];
     let area_ratio = norm * ld(ctx, &batch.inv_double_area, off);
     let mut phi = [ctx; 3];
-    let mut two_half_cos = [ctx; 3];
+    let mut slope = [ctx; 3];
     let mut failed = 0u32;
     for i in 0..3 {
         // Gather the partner normals.
@@ -763,14 +773,22 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
             ctx.load(partner[2]),
         ];
         let active = ld(ctx, &batch.active[i], off);
-        let one_plus_cos = one + vdot(&n, &partner);
+        let clamped = ld(ctx, &batch.clamped[i], off);
+        let not_clamped = one - clamped;
+        let cos = vdot(&n, &partner);
+        let one_plus_cos = one + cos;
         // l_i sin θ = −n'·(e_i × n).
         let length_sin = -vdot(&partner, &outward[i]);
-        let fold = one_plus_cos.le(ctx.splat(FOLD_LIMIT)) & active.gt(ctx.splat(0.0));
-        failed |= V::bits(fold);
-        // 2 cos(θ/2) = √(2(1 + cos θ)); φ = θ̂ J / l = 2 (l sin θ) J / (l² · 2cos(θ/2)).
-        let y = (one_plus_cos * 2.0).sqrt();
-        two_half_cos[i] = y;
+        let zero = ctx.splat(0.0);
+        let fold = one_plus_cos.le(ctx.splat(FOLD_LIMIT)) & active.gt(zero) & clamped.le(zero);
+        let overturned = cos.le(ctx.splat(CLAMP_LIMIT)) & clamped.gt(zero);
+        failed |= V::bits(fold | overturned);
+        // Interior hinge: y = 2 cos(θ/2) = √(2(1 + cos θ)),
+        // φ = θ̂ J / l = 2 (l sin θ) J / (l² y), m' = y/2.
+        // Clamped hinge: y = 1, φ = 2 sin θ J / l = 2 (l sin θ) J / l²,
+        // m' = 2 cos θ (docs/bending.md, Eq. (2c)).
+        let y = (one_plus_cos * 2.0 * not_clamped + clamped).sqrt();
+        slope[i] = y * 0.5 * not_clamped + cos * 2.0 * clamped;
         phi[i] = length_sin * 2.0 * area_ratio * inv_length2[i] / y * active;
     }
     // ΔK, moment m = A0 D ΔK, μ_i = c_i·m.
@@ -788,12 +806,12 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
             + ld(ctx, &batch.coefficients[3 * i + 1], off) * moment[1]
             + ld(ctx, &batch.coefficients[3 * i + 2], off) * moment[2];
     }
-    // Per-edge moments P_i = μ_i J cos(θ_i/2) and π_i = P_i / l_i².
+    // Per-edge moments P_i = μ_i J m'(θ_i) and π_i = P_i / l_i².
     let mut pi = [ctx; 3];
     let mut sigma = ctx.splat(0.0);
     let mut tau = [ctx; 3];
     for i in 0..3 {
-        let p = mu[i] * area_ratio * (two_half_cos[i] * 0.5) * ld(ctx, &batch.active[i], off);
+        let p = mu[i] * area_ratio * slope[i] * ld(ctx, &batch.active[i], off);
         st(p, &mut hinge.moments[i], off);
         st(inv_length2[i], &mut hinge.inv_length2[i], off);
         pi[i] = p * inv_length2[i];

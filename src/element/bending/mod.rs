@@ -4,7 +4,8 @@
 //! three nodes and the three vertices opposite its edges in the edge
 //! neighbours (a 6-node stencil). The curvature is the pull-back to the
 //! reference fibre basis of a discrete shape operator built from hinge
-//! measures `θ̂ = 2 sin(θ/2)` of the three edge dihedral angles, so the
+//! measures `θ̂ = 2 sin(θ/2)` of the three edge dihedral angles (`2 sin θ`,
+//! the measure of the mirror angle `2θ`, on clamped edges), so the
 //! orthotropic bending law `W = A0 ½ ΔKᵀ D ΔK` follows the rovings and the
 //! stitching as the ply shears. See `docs/bending.md` for the formulation,
 //! its derivation, the sign conventions and the limits.
@@ -36,12 +37,22 @@ pub type StencilVector = SVector<f64, 18>;
 /// Tangent over the 6-slot stencil (node-major, 18×18).
 pub type StencilMatrix = SMatrix<f64, 18, 18>;
 
-/// `1 + cos θ` at or below which a hinge counts as completely folded
+/// `1 + cos θ` at or below which an interior hinge counts as completely folded
 /// (`|θ| ≥ π − 2·10⁻⁴`): the hinge measure `θ̂ = 2 sin(θ/2)` is singular
 /// (its sign flips) at `θ = ±π`, and its derivative `1/cos(θ/2)`-scaled
 /// terms grow without bound near it. Such a state is reported as
 /// [`BendingError::FoldedHinge`] (docs/bending.md, "Limits").
 pub const FOLD_LIMIT: f64 = 2.0e-8;
+
+/// `cos θ` at or below which a clamped hinge counts as overturned
+/// (`|θ| ≥ 90° − 0.0057°`): the clamped hinge measure `m_c = 2 sin θ` (the
+/// measure of the angle `2θ` between the element and its mirror image
+/// across the clamp plane) peaks at `θ = ±90°`, where the mirror angle is a
+/// complete fold, and falls beyond, so the clamp would let go. The limit is
+/// the fold limit of the mirror hinge, `1 + cos 2θ = 2 cos²θ ≤ FOLD_LIMIT`.
+/// Such a state is reported as [`BendingError::OverturnedClamp`]
+/// (docs/bending.md, "Free and clamped edges").
+pub const CLAMP_LIMIT: f64 = 1.0e-4;
 
 /// Relative area below which a triangle is degenerate:
 /// `2A ≤ DEGENERATE_AREA · (longest edge)²`.
@@ -60,7 +71,9 @@ pub enum HingeKind {
     Neighbour,
     /// A boundary edge on a clamp line: the partner is a fixed ghost vertex,
     /// the mirror image of the element's own opposite node across the edge
-    /// line in the reference configuration.
+    /// line in the reference configuration, and the hinge measure is
+    /// `2 sin θ` (the measure of the angle `2θ` between the element and its
+    /// mirror image across the clamp plane), valid for `|θ| < 90°`.
     Clamped,
 }
 
@@ -149,8 +162,8 @@ pub enum BendingError {
         /// The partner triangle's area [mm²].
         area: f64,
     },
-    /// A hinge is completely folded (`1 + cos θ ≤ FOLD_LIMIT`), where the
-    /// hinge measure is singular.
+    /// An interior hinge is completely folded (`1 + cos θ ≤ FOLD_LIMIT`),
+    /// where the hinge measure is singular.
     #[error(
         "hinge at edge {edge} is folded flat onto itself: 1 + cos θ = {one_plus_cos:e}, expected > {limit:e}",
         limit = FOLD_LIMIT
@@ -160,6 +173,18 @@ pub enum BendingError {
         edge: usize,
         /// `1 + cos θ`.
         one_plus_cos: f64,
+    },
+    /// A clamped hinge is rotated to or past 90° about the clamp line
+    /// (`cos θ ≤ CLAMP_LIMIT`), where its measure `2 sin θ` stops growing.
+    #[error(
+        "clamped hinge at edge {edge} is turned to or past 90° about the clamp line: cos θ = {cos:e}, expected > {limit:e}",
+        limit = CLAMP_LIMIT
+    )]
+    OverturnedClamp {
+        /// Local edge index `0..3`.
+        edge: usize,
+        /// `cos θ` against the fixed ghost triangle.
+        cos: f64,
     },
     /// A node position is not finite.
     #[error("stencil slot {slot} has a non-finite position")]
