@@ -491,7 +491,7 @@ fn vector3(
     let x = Vector3::new(values[0], values[1], values[2]);
     if unit {
         let n = x.norm();
-        if !(n > 1e-12) {
+        if n.is_nan() || n <= 1e-12 {
             return Err(check.invalid(check.line_of(v), key, shown, "a non-zero direction"));
         }
         return Ok(x / n);
@@ -679,13 +679,13 @@ impl FormingCase {
                 })
             }
         };
-        if gravity.is_some() {
-            if let Some(p) = plies.iter().find(|p| p.density.is_none()) {
-                return Err(check.missing(
-                    &format!("ply \"{}\": areal_mass", p.name),
-                    "the ply's areal mass [kg/m²] for gravity (a parameter file has none)",
-                ));
-            }
+        if gravity.is_some()
+            && let Some(p) = plies.iter().find(|p| p.density.is_none())
+        {
+            return Err(check.missing(
+                &format!("ply \"{}\": areal_mass", p.name),
+                "the ply's areal mass [kg/m²] for gravity (a parameter file has none)",
+            ));
         }
 
         let mut tools = Vec::new();
@@ -847,13 +847,13 @@ impl FormingCase {
         }
         let explicit =
             ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, stroke.unwrap_or(1.0))?;
-        if solver_kind == SolverKind::Explicit {
-            if let Some(p) = plies.iter().find(|p| p.density.is_none()) {
-                return Err(check.missing(
-                    &format!("ply \"{}\": areal_mass", p.name),
-                    "the ply's areal mass [kg/m²] for the explicit solver (a parameter file has none)",
-                ));
-            }
+        if solver_kind == SolverKind::Explicit
+            && let Some(p) = plies.iter().find(|p| p.density.is_none())
+        {
+            return Err(check.missing(
+                &format!("ply \"{}\": areal_mass", p.name),
+                "the ply's areal mass [kg/m²] for the explicit solver (a parameter file has none)",
+            ));
         }
         let (states, history_rows) = match &raw.output {
             None => (DEFAULT_STATES, DEFAULT_HISTORY_ROWS),
