@@ -40,7 +40,7 @@ fn homogeneous(x: &Vector3<f64>) -> [f64; 3] {
     ]
 }
 
-fn setup() -> (MembraneModel, DofMap, Vec<f64>) {
+fn setup() -> (MembraneModel, Vec<Dirichlet>, Vec<f64>) {
     let generated = oat_specimen(&OatSpecimen {
         width: 150.0,
         length: 300.0,
@@ -78,13 +78,26 @@ fn setup() -> (MembraneModel, DofMap, Vec<f64>) {
             }
         }
     }
-    let dofs = DofMap::new(mesh.nodes.len(), &conditions);
-    (model, dofs, u)
+    (model, conditions, u)
 }
 
-fn element_cycles(criterion: &mut Criterion) {
-    let (membrane, dofs, u0) = setup();
-    let triangles = membrane.triangles.len();
+/// The model of the benchmark: the membrane alone, or with bending and the
+/// contact of every node with a plane tool under the blank (its
+/// mid-surface half a thickness above the plane, perturbed by ±0.02 mm:
+/// about half the nodes press into the tool, with friction).
+fn model_of(membrane: MembraneModel, forming: bool) -> Model {
+    use ncform::contact::{Placed, Placement, Plane};
+    use ncform::element::BendingStiffness;
+    use ncform::model::{BendingTerm, ContactOptions, ToolContact};
+    use std::sync::Arc;
+
+    let nodes = membrane.nodes.clone();
+    let triangles = membrane.triangles.clone();
+    let fibres: Vec<Vector3<f64>> = membrane
+        .references
+        .iter()
+        .map(|r| r.e1 * r.frame.a0.x + r.e2 * r.frame.a0.y)
+        .collect();
     let mut model = Model::membrane(
         membrane,
         MembraneOptions {
@@ -92,12 +105,71 @@ fn element_cycles(criterion: &mut Criterion) {
             density: Some(DENSITY),
         },
     );
-    let system = ExplicitSystem::new(&mut model, &dofs, None, &State::at(&u0)).expect("system");
+    if forming {
+        let clamped = vec![false; nodes.len()];
+        model.add(
+            BendingTerm::new("bending", &nodes, &triangles, &fibres, &clamped, BendingStiffness::paper())
+                .expect("bending"),
+        );
+        let extra = model.add_extra("table");
+        let plane = Placed::new(
+            Plane::new(),
+            Placement::translation(Vector3::new(0.0, 0.0, -0.15)).expect("placement"),
+        );
+        let count = nodes.len();
+        model.add(ToolContact::new(
+            "contact with the table",
+            Arc::new(plane),
+            Vector3::z(),
+            extra,
+            count,
+            (0..count).collect(),
+            nodes.clone(),
+            vec![0.15; count],
+            vec![6.25; count],
+            vec![1200.0; count],
+            ContactOptions {
+                friction: 0.147,
+                gap_tolerance: 3e-3,
+                multiplier_tolerance: 1e-3,
+                explicit_stiffness: 0.1,
+                explicit_damping: 0.2,
+            },
+        ));
+    }
+    model
+}
+
+fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
+    let (membrane, mut conditions, mut u0) = setup();
+    let triangles = membrane.triangles.len();
+    let nodes = membrane.nodes.len();
+    let mut model = model_of(membrane, forming);
+    if forming {
+        // The table is fixed; the perturbation in z reaches into it.
+        conditions.push(Dirichlet::dof(model.extra_dof(0), 0.0));
+        let mut rng = StdRng::seed_from_u64(7);
+        for n in 0..nodes {
+            u0[3 * n + 2] = rng.random_range(-0.02..0.02);
+        }
+        conditions.retain(|c| c.dof % 3 != 2 || c.dof >= 3 * nodes);
+        u0.push(0.0);
+    }
+    let dofs = DofMap::with_total(model.dofs(), &conditions);
+    let system =
+        ExplicitSystem::new(&mut model, &dofs, None, &State::at(&u0)).expect("system");
+    let without = system
+        .critical_time_step_of(&model, &State::at(&u0), false)
+        .expect("stable step");
+    for term in &mut model.terms {
+        term.explicit_setup(&State::at(&u0), &system.masses, without)
+            .expect("set-up");
+    }
     let critical = system
         .critical_time_step(&model, &State::at(&u0))
         .expect("stable step");
     let time_step = 0.9 * critical;
-    let mut group = criterion.benchmark_group("explicit_element_cycles");
+    let mut group = criterion.benchmark_group(group_name);
     group.throughput(Throughput::Elements(triangles as u64));
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -131,8 +203,12 @@ fn element_cycles(criterion: &mut Criterion) {
                                 load_next: 1.0,
                             },
                         );
+                        let state = State {
+                            time_step,
+                            ..State::at(black_box(&u))
+                        };
                         system
-                            .element_forces(&mut model, &State::at(black_box(&u)), &mut forces)
+                            .element_forces(&mut model, &state, &mut forces)
                             .expect("forces");
                     }
                     start.elapsed()
@@ -143,10 +219,19 @@ fn element_cycles(criterion: &mut Criterion) {
     group.finish();
 }
 
+fn element_cycles(criterion: &mut Criterion) {
+    run_group(criterion, "explicit_element_cycles", false);
+}
+
+/// Membrane + bending + frictional contact with one tool.
+fn forming_element_cycles(criterion: &mut Criterion) {
+    run_group(criterion, "explicit_element_cycles_forming", true);
+}
+
 criterion_group! {
     name = benches;
     // No HTML plots: the numbers are what we quote.
     config = Criterion::default().without_plots();
-    targets = element_cycles
+    targets = element_cycles, forming_element_cycles
 }
 criterion_main!(benches);
