@@ -14,7 +14,7 @@ moduli are of order 1 and every term has a transition and a lock (so the small
 shear/compaction terms are not hidden under the 1000 MPa roving modulus), with a
 non-integer coupling exponent e11 = 2.5 (exercises k11'' properly).
 
-Energy (model.md, "Energy" and "The generalized stress function")
+Energy (docs/theory.md, "Energy" and "The generalized stress function")
 -----------------------------------------------------------------
     a0 = (cos t, sin t), b0 = (-sin t, cos t)   (t = fibre angle)
     I4 = a0.C a0,  I6 = a0.C b0,  I8 = b0.C b0
@@ -141,7 +141,7 @@ class Harness:
 
 
 # --------------------------------------------------------------------------
-# Parameter sets (values from model.md, Table D.1; the default's W11 lock is
+# Parameter sets (values from docs/theory.md, Table D.1; the default's W11 lock is
 # the reconstruction I_lock = 0.4, C_lock = 10 MPa).
 # --------------------------------------------------------------------------
 
@@ -231,7 +231,7 @@ SYM_I11 = sp.sqrt((SYM_I4 * SYM_I8 - SYM_I6 ** 2) / SYM_I4)
 
 
 def G_sym(x, region, lock):
-    """Generalized energy G(x) of model.md, in one region, with or without lock."""
+    """Generalized energy G(x) of docs/theory.md, in one region, with or without lock."""
     if region == "ini":
         g = CI * x ** 2 / 2
     else:
@@ -672,7 +672,7 @@ def check_model_self_consistency(law, contexts):
     ok = True
     x = sp.Symbol("x", positive=True)
     xt = SI / CI
-    # (1) G as written in model.md integrates f of Eq. (12): dG/dx == f.
+    # (1) G as written in docs/theory.md integrates f of Eq. (12): dG/dx == f.
     c = CI / DS
     y = x - xt
     f_mid = SI + (CM * y + DS) * (1 - sp.exp(-c * y))
@@ -858,7 +858,7 @@ def main():
     sys.stdout.flush()
 
     hx.run("law/reference-self-check",
-           "the sympy reference follows model.md (dG/dx = f of Eq. 12, G in C2 at x_t, "
+           "the sympy reference follows docs/theory.md (dG/dx = f of Eq. 12, G in C2 at x_t, "
            "derivative convention) and is accurate to 1e-10 (mpmath) and consistent (finite differences)",
            lambda: check_model_self_consistency(law, contexts))
     for ctx in contexts:
@@ -868,7 +868,7 @@ def main():
                lambda ctx=ctx: check_coverage(ctx))
         hx.run(f"law/invariants/{L}", f"I4, I6, I8, I10, I11 match to {INV_TOL:g} at {n} states, set {L}",
                lambda ctx=ctx: ctx.compare_invariants())
-        hx.run(f"law/W/{L}", f"W matches the energy of model.md to {REL_TOL:g} at {n} states, set {L}",
+        hx.run(f"law/W/{L}", f"W matches the energy of docs/theory.md to {REL_TOL:g} at {n} states, set {L}",
                lambda ctx=ctx: ctx.compare("W"))
         hx.run(f"law/S/{L}", f"S = 2 dW/dC matches sympy to {REL_TOL:g} at {n} states, set {L}",
                lambda ctx=ctx: ctx.compare("S"))

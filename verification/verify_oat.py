@@ -24,7 +24,7 @@ with code that shares nothing with the Rust sources:
   search, the clamp displacement applied in 1 mm increments (halved on
   failure), converged to a residual of 1e-9 N per dof.
 
-Problem (scenarios.md §1, the brief of this suite): specimen x in [0, W],
+Problem (the OAT of docs/cases.md): specimen x in [0, W],
 y in [0, L]; rovings a0 = (sin th, cos th), stitching b0 = (-cos th, sin th)
 (a0 turned by +90 deg); nodes at y = 0 fixed in x and y; nodes at y = L
 fixed in x and moved by d in y; in-plane (z fixed). Energy per element
@@ -34,7 +34,7 @@ nodes [N].
 Cases (coarse, element_size = 10 mm, 600 triangles, to keep CI fast):
 * 45 deg, W = 100, L = 300, d = 80 mm, outputs every 10 mm;
 * 30 deg, same specimen, d = 40 mm, outputs every 10 mm;
-both with the default parameter set `schaefer2024` (model.md), t = 0.3 mm.
+both with the default parameter set `schaefer2024` (docs/parameters.md), t = 0.3 mm.
 
 Checks and tolerances
 ---------------------
@@ -103,7 +103,7 @@ def term(c_ini, s_ini=None, c_mid=None, delta_s_mid=None, c_lock=None, i_lock=No
 
 
 def params_schaefer2024():
-    """Table D.1 of the paper with the reconstructed W11 lock (model.md: default)."""
+    """Table D.1 of the paper with the reconstructed W11 lock (docs/parameters.md: default)."""
     return {
         "w4": term(1000.0),
         "w6": term(0.14, 0.018, 0.01, 0.005),
@@ -120,7 +120,7 @@ def scale_term(tp, factor):
 
 
 def G_term(x, tp):
-    """Energy G(x) of model.md ("The generalized stress function and its energy"), x >= 0."""
+    """Energy G(x) of docs/theory.md ("The generalized stress function and its energy"), x >= 0."""
     ci = tp["c_ini"]
     if tp["s_ini"] is None:
         g = 0.5 * ci * x * x
@@ -141,7 +141,7 @@ def G_term(x, tp):
 
 
 def f_term(x, tp):
-    """Stress f(x) = G'(x) of Eq. (12) as model.md states it."""
+    """Stress f(x) = G'(x) of Eq. (12) as docs/theory.md states it."""
     ci = tp["c_ini"]
     if tp["s_ini"] is None:
         f = ci * x
@@ -639,7 +639,7 @@ def main():
         workdir = tempfile.mkdtemp(prefix="ncform-verify-oat-")
 
     hx.run("oat/law-self-check",
-           f"the numpy law of model.md: S = 2 dW/dC matches central differences of W to {LAW_FD_TOL:g}; "
+           f"the numpy law of docs/theory.md: S = 2 dW/dC matches central differences of W to {LAW_FD_TOL:g}; "
            "W = 0, S = 0 at C = I",
            lambda: check_law_self(params))
     for name in CASES:

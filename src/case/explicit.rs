@@ -9,7 +9,7 @@ use crate::config::{ConfigError, TomlChecker};
 use crate::solver::NewtonParameters;
 use crate::solver::explicit::{Amplitude, ExplicitParameters, TimeStepControl};
 
-/// Areal mass of the paper's fabric [kg/m²] (model.md), the default for the
+/// Areal mass of the paper's fabric [kg/m²] (not in the paper; `docs/parameters.md`), the default for the
 /// named parameter sets.
 pub const DEFAULT_AREAL_MASS: f64 = 0.30;
 /// `1 kg/m² = 1e-9 t/mm²`.

@@ -22,7 +22,7 @@ use crate::solver::{Dirichlet, DofMap, NewtonParameters};
 
 /// Default side of the square main-deformation-zone window [mm].
 pub const DEFAULT_MDZ_SIZE: f64 = 20.0;
-/// Default membrane thickness [mm] (not in the paper; model.md).
+/// Default membrane thickness [mm] (not in the paper; `docs/parameters.md`).
 pub const DEFAULT_THICKNESS: f64 = 0.3;
 
 #[derive(Deserialize)]
