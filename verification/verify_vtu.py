@@ -46,9 +46,9 @@ in each `oat.pvd` with meshio, and checks per case:
 * `strain-measures`: E22 = I8 - 1, E_perp = I11 - 1 (scale max(|ref|, ||C||_F),
   they are differences of the invariants), shear_angle_deg =
   degrees(pi/2 - arccos(I6 / sqrt(I4 I8))) (scale max(|ref|, 1 rad in deg)),
-  all to 1e-9, from the recomputed invariants (model.md, "Strain measures").
+  all to 1e-9, from the recomputed invariants (docs/theory.md, "Strain measures").
 * `law-fields` (beyond the brief, cheap): k11, energy_density and S equal the
-  numpy law of verify_oat.py (model.md) at the recomputed C, to 1e-8
+  numpy law of verify_oat.py (docs/theory.md) at the recomputed C, to 1e-8
   relative -- the law requirement of the issue -- plus a round-off floor
   ||tangent|| * dC, dC = 8 eps max|x| / (shortest edge) the error of C from
   coordinates written in f64 (the roving modulus 1000 MPa amplifies it);
@@ -57,13 +57,13 @@ in each `oat.pvd` with meshio, and checks per case:
   two-family reading recomputed here from the reference centroid: the roving
   line and the stitching line through it each either end on a clamp edge
   (y = 0 or y = L) or not; A = neither does, C = both do, B = one does (this is
-  the reading whose pin-jointed-net zone areas scenarios.md §5 gives;
+  the reading whose pin-jointed-net zone areas docs/verification.md (the pin-jointed net) gives;
   elements within 1e-9 mm of a zone boundary are skipped). Zone areas are
   reported next to the net's W(L - 1.5W), W^2, W^2/2 for 45 deg.
 * `mdz`: mdz in {0, 1}, the same in every file, not empty; mdz elements only in
   zone 0 (A) unless zone A is empty; and equal to the recomputation (zone A
   elements whose centroid lies in the 20 x 20 mm window at the specimen centre,
-  scenarios.md §1; the window alone when that set is empty).
+  docs/cases.md; the window alone when that set is empty).
 * `units`: the VTU and pvd XML comments state the units (mm, and N and MPa in
   the VTU), the CSV files carry a `# units:` comment line with mm and N, the
   force CSV header is `displacement [mm],force [N],iterations [-]`, and
@@ -96,7 +96,7 @@ from verify_oat import (CASES, LENGTH, WIDTH, law, params_schaefer2024,  # noqa:
 INV_TOL = 1e-9       # brief: invariants and strain measures to 1e-9 relative
 LAW_TOL = 1e-8       # law requirement of the issue (as in verify_law.py)
 REF_TOL = 1e-12      # reference coordinates / clamp values: round-off only
-MDZ_SIZE = 20.0      # scenarios.md §1 (ncform's default; not set in the case files)
+MDZ_SIZE = 20.0      # docs/cases.md (ncform's default; not set in the case files)
 EPS = np.finfo(float).eps
 
 VTU_CASES = dict(CASES)
@@ -449,7 +449,7 @@ class VtuCase:
         info = (f"zone areas A/B/C = {areas[0]:.0f}/{areas[1]:.0f}/{areas[2]:.0f} mm^2 "
                 f"({int((~sure).sum())} elements on a boundary skipped)")
         if abs(self.theta - 45.0) < 1e-12:
-            info += (f"; pin-jointed net (scenarios.md §5): {WIDTH * (LENGTH - 1.5 * WIDTH):.0f}/"
+            info += (f"; pin-jointed net (docs/verification.md (the pin-jointed net)): {WIDTH * (LENGTH - 1.5 * WIDTH):.0f}/"
                      f"{WIDTH ** 2:.0f}/{WIDTH ** 2 / 2:.0f} (element centroids, so only close)")
         return not bad, "\n".join(bad + [info])
 
@@ -538,7 +538,7 @@ def main():
                            f"(a0 projected on the element plane) to {INV_TOL:g}"),
             ("strain-measures", f"E22 = I8 - 1, E_perp = I11 - 1, shear_angle_deg = "
                                 f"deg(pi/2 - arccos(I6/sqrt(I4 I8))) to {INV_TOL:g}"),
-            ("law-fields", f"k11, energy_density and S (global xx, yy, xy) equal the model.md law "
+            ("law-fields", f"k11, energy_density and S (global xx, yy, xy) equal the docs/theory.md law "
                            f"at the recomputed C to {LAW_TOL:g} (+ coordinate round-off)"),
             ("zones", "zone in {0, 1, 2}, constant, = two-family reading of the reference centroids"),
             ("mdz", "mdz in {0, 1}, constant, non-empty, only in zone A unless zone A is empty, "
