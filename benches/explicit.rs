@@ -108,8 +108,15 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
     if forming {
         let clamped = vec![false; nodes.len()];
         model.add(
-            BendingTerm::new("bending", &nodes, &triangles, &fibres, &clamped, BendingStiffness::paper())
-                .expect("bending"),
+            BendingTerm::new(
+                "bending",
+                &nodes,
+                &triangles,
+                &fibres,
+                &clamped,
+                BendingStiffness::paper(),
+            )
+            .expect("bending"),
         );
         let extra = model.add_extra("table");
         let plane = Placed::new(
@@ -156,8 +163,7 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
         u0.push(0.0);
     }
     let dofs = DofMap::with_total(model.dofs(), &conditions);
-    let system =
-        ExplicitSystem::new(&mut model, &dofs, None, &State::at(&u0)).expect("system");
+    let system = ExplicitSystem::new(&mut model, &dofs, None, &State::at(&u0)).expect("system");
     let without = system
         .critical_time_step_of(&model, &State::at(&u0), false)
         .expect("stable step");

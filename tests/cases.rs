@@ -1,4 +1,4 @@
-//! Tests of case files and `ncform run` (docs/cases.md; scenarios.md §1):
+//! Tests of case files and `ncform run` (docs/cases.md; docs/cases.md):
 //! validation messages, mesh files, boundary conditions, zones, the outputs
 //! of a run, incomplete runs and exit codes. Each test names the requirement
 //! it checks. The cases are coarse (15 mm elements, at most 40 mm) so the
@@ -683,7 +683,7 @@ fn unconnected_nodes_are_fixed() {
 // Boundary conditions and zones (no solve)
 // ---------------------------------------------------------------------------
 
-/// docs/cases.md "Boundary conditions" (scenarios.md §1): every z fixed;
+/// docs/cases.md "Boundary conditions" (docs/cases.md): every z fixed;
 /// the `y = 0` clamp fixed in x and y; the `y = L` clamp fixed in x and
 /// pulled in +y by the load parameter; nothing else constrained.
 #[test]
@@ -1331,7 +1331,7 @@ fn explicit_settings_are_checked() {
         &append(BASE, "\n[material]\nparams = \"fabric.toml\"\n"),
     );
     assert_eq!(quasi_static.density, None);
-    // 0.30 kg/m² at 0.3 mm is 1.0e-9 t/mm³ (model.md).
+    // 0.30 kg/m² at 0.3 mm is 1.0e-9 t/mm³ (docs/theory.md).
     let default = load(dir.path(), &explicit);
     assert!((default.density.unwrap() - 1.0e-9).abs() <= 1e-24);
 }

@@ -1,4 +1,4 @@
-//! Tests of the material layer: the UD-NCF law (model.md, paper Eq. 3–16 with
+//! Tests of the material layer: the UD-NCF law (docs/theory.md, paper Eq. 3–16 with
 //! the errata of docs/theory.md), the SVK cross-check law, parameter files
 //! and the `material` commands. Each test names the requirement it checks.
 
@@ -223,7 +223,7 @@ fn rel_close(a: f64, b: f64, tol: f64, scale: f64) -> bool {
     (a - b).abs() <= tol * scale
 }
 
-/// Requirement (scenarios.md §5): roving slip `F = I + g a0⊗b0` with
+/// Requirement (docs/verification.md): roving slip `F = I + g a0⊗b0` with
 /// `a0 = e1` gives `I4 = 1`, `I6 = g`, `I8 = 1 + g²`, `I11 = 1`, and by hand
 /// (docs/theory.md) `W = G6(|g|) + G8(g²)`, `S11 = 0`,
 /// `S12 = sgn(g) f6(|g|)`, `S22 = 2 f8(g²)`. Tolerance 1e-12 relative: the
@@ -262,7 +262,7 @@ fn roving_slip_matches_hand_derivation() {
     }
 }
 
-/// Requirement (scenarios.md §5): trellis shear by γ with `a0 = e1` gives
+/// Requirement (docs/verification.md): trellis shear by γ with `a0 = e1` gives
 /// `C = [[1, sin γ], [sin γ, 1]]`, `I6 = sin γ`, `I8 = 1`, `I11 = cos γ`,
 /// `I10 = γ`; by hand `W = G6(|s|) + G11(1 − cos γ)`, and with
 /// `f11 = f11(1 − cos γ)`: `S11 = −f11 s²/cos γ`, `S22 = −f11/cos γ`,
@@ -314,7 +314,7 @@ fn trellis_shear_matches_hand_derivation() {
     }
 }
 
-/// Requirement (model.md, Eq. 12): f is C¹ at x_t (by the choice of x_t and
+/// Requirement (docs/theory.md, Eq. 12): f is C¹ at x_t (by the choice of x_t and
 /// c) and at I_lock, and G is continuous there. Compared: the two one-sided
 /// values at the boundary, to 1e-12 relative (exact in real arithmetic).
 #[test]
@@ -524,7 +524,7 @@ fn tangent_has_major_and_minor_symmetry() {
     }
 }
 
-/// Requirement (model.md): det C ≤ 0 or I4 ≤ 0 (inverted or collapsed
+/// Requirement (docs/theory.md): det C ≤ 0 or I4 ≤ 0 (inverted or collapsed
 /// element) and non-finite C are errors, never NaN; nearly degenerate but
 /// admissible states give finite values.
 #[test]

@@ -1,4 +1,4 @@
-//! Tests of the mesh layer: the OAT specimen generator (scenarios.md §1),
+//! Tests of the mesh layer: the OAT specimen generator (docs/cases.md),
 //! the Abaqus `.inp` and Gmsh `.msh` 4.1 readers, fibre directions and the
 //! mesh checks (docs/meshes.md). Each test names the requirement it checks.
 
@@ -110,7 +110,7 @@ fn generator_every_triangle_has_edge_within_reported_deviation() {
     }
 }
 
-/// Requirement (scenarios.md §1): the paper-size meshes (100 × 300 mm, h for
+/// Requirement (docs/cases.md): the paper-size meshes (100 × 300 mm, h for
 /// about 8,200 triangles) at 30°, 45°, 60° have 8,200 triangles ± 10 %
 /// (`COUNT_TOLERANCE`) and every triangle within 0.1° of the rovings (a
 /// misalignment δ leaks roving stiffness of order C4·δ² ≤ 0.003 MPa, 2 % of

@@ -564,11 +564,11 @@ fn newton_converges_quadratically() {
     assert!(order >= 1.6, "UD-NCF patch: observed order {order} ({r:?})");
 }
 
-/// Requirement (scenarios.md §5): on a mesh whose edges follow both the
+/// Requirement (docs/verification.md): on a mesh whose edges follow both the
 /// rovings and the stitching (square cells split by both diagonals), the 45°
 /// OAT with very stiff rovings and stitching (orthotropic SVK, E1 = E2 =
 /// 1e4 MPa, ν12 = 0, so W = W4 + W8 + ½ G12 I6², f6 = G12 I6) approaches the
-/// pin-jointed-net force. Tolerance 5 %: scenarios.md expects "the force
+/// pin-jointed-net force. Tolerance 5 %: docs/cases.md expects "the force
 /// within a few per cent" because the net's uniform zone-A shear is not the
 /// exact energy minimum of a finite specimen. The mesh with edges along the
 /// rovings only locks: its force is many times the net's (docs/solver.md).
