@@ -309,6 +309,30 @@ fn bad_forming_cases_name_key_value_and_expectation() {
         assert_mentions(&msg, &parts);
         assert!(msg.contains("case.toml"), "no file in `{msg}`");
     }
+
+    // A mesh tool that must be closed but is an open sheet: the message
+    // names the case, the tool, the STL file and an edge of the hole.
+    let dir = TempDir::new().unwrap();
+    let stl = dir.path().join("sheet.stl");
+    fs::write(
+        &stl,
+        "solid sheet\n facet normal 0 0 1\n  outer loop\n   vertex -60 -60 0\n   vertex 60 -60 0\n   vertex 60 60 0\n  endloop\n endfacet\nendsolid sheet\n",
+    )
+    .unwrap();
+    let text = edit(
+        &base,
+        &[(
+            "name = \"table\"\nshape = \"plane\"",
+            "name = \"table\"\nshape = \"mesh\"\nfile = \"sheet.stl\"",
+        )],
+    );
+    let path = dir.path().join("case.toml");
+    fs::write(&path, &text).unwrap();
+    let msg = match FormingCase::load(&path).unwrap().build() {
+        Err(e) => e,
+        Ok(_) => panic!("an open STL with closed = true should be rejected"),
+    };
+    assert_mentions(&msg, &["case.toml", "tool \"table\"", "sheet.stl"]);
 }
 
 // ---------------------------------------------------------------------------
