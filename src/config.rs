@@ -180,3 +180,22 @@ impl TomlChecker<'_> {
         self.invalid(0, key, "(missing)".to_string(), expected)
     }
 }
+
+/// Reads a case file: its text, its name for messages and the folder its
+/// relative paths are taken from.
+///
+/// # Errors
+/// [`ConfigError::NotFound`] for an unreadable file.
+pub fn read_case_file(
+    path: &std::path::Path,
+) -> Result<(String, String, std::path::PathBuf), ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::NotFound {
+        requested: format!("case file '{}'", path.display()),
+        reason: e.to_string(),
+    })?;
+    let base = path
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .to_path_buf();
+    Ok((text, path.display().to_string(), base))
+}

@@ -892,12 +892,8 @@ impl FormingCase {
     /// # Errors
     /// As [`FormingCase::from_toml_str`], or an unreadable file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::NotFound {
-            requested: format!("case file '{}'", path.display()),
-            reason: e.to_string(),
-        })?;
-        let base = path.parent().unwrap_or(Path::new("."));
-        Self::from_toml_str(&text, &path.display().to_string(), base)
+        let (text, source, base) = crate::config::read_case_file(path)?;
+        Self::from_toml_str(&text, &source, &base)
     }
 }
 

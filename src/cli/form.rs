@@ -26,7 +26,7 @@ use crate::case::SolverKind;
 use crate::case::forming::{FormingCase, ToolMotion};
 use crate::case::forming_model::FormingModel;
 use crate::post::csv::write_csv;
-use crate::post::fields::element_fields;
+use crate::post::fields::{FieldColumns, element_fields};
 use crate::post::plot::{Panel, Series, write_panels};
 use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
 use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
@@ -422,19 +422,7 @@ fn write_ply_vtu(
             ply.mesh.element_label(e)
         )
     })?;
-    let column = |f: fn(&crate::post::fields::ElementFields) -> f64| {
-        fields.iter().map(f).collect::<Vec<f64>>()
-    };
-    let e22 = column(|f| f.e22);
-    let gamma = column(|f| f.shear_angle_deg);
-    let e_perp = column(|f| f.e_perp);
-    let i4 = column(|f| f.i4);
-    let i6 = column(|f| f.i6);
-    let i8 = column(|f| f.i8);
-    let i11 = column(|f| f.i11);
-    let k11 = column(|f| f.k11);
-    let w = column(|f| f.energy_density);
-    let stress: Vec<[f64; 3]> = fields.iter().map(|f| f.stress_xy).collect();
+    let columns = FieldColumns::new(&fields);
     let contact = ply_contact(built, p, snapshot.model);
     let piece = VtuPiece {
         points: &points,
@@ -465,48 +453,7 @@ fn write_ply_vtu(
                 data: FieldData::Scalar(&contact.slip),
             },
         ],
-        cell_fields: vec![
-            Field {
-                name: "E22",
-                data: FieldData::Scalar(&e22),
-            },
-            Field {
-                name: "shear_angle_deg",
-                data: FieldData::Scalar(&gamma),
-            },
-            Field {
-                name: "E_perp",
-                data: FieldData::Scalar(&e_perp),
-            },
-            Field {
-                name: "I4",
-                data: FieldData::Scalar(&i4),
-            },
-            Field {
-                name: "I6",
-                data: FieldData::Scalar(&i6),
-            },
-            Field {
-                name: "I8",
-                data: FieldData::Scalar(&i8),
-            },
-            Field {
-                name: "I11",
-                data: FieldData::Scalar(&i11),
-            },
-            Field {
-                name: "k11",
-                data: FieldData::Scalar(&k11),
-            },
-            Field {
-                name: "energy_density",
-                data: FieldData::Scalar(&w),
-            },
-            Field {
-                name: "S",
-                data: FieldData::SymTensor2(&stress),
-            },
-        ],
+        cell_fields: columns.cell_fields(),
         comment: vec![
             format!(
                 "ncform: {} ({}), ply \"{}\"",
@@ -915,9 +862,8 @@ fn write_energy(
     records: &[ExplicitRecord],
     status: &RunStatus,
 ) -> Result<(), String> {
-    let path = out.join("energy.csv");
-    write_csv(
-        &path,
+    super::energy::write_energy(
+        out,
         &[
             "ncform run: energy history of the explicit solver".to_string(),
             format!("case: {} ({})", case.title, case.source),
@@ -925,83 +871,13 @@ fn write_energy(
             "balance error = internal + contact + kinetic + damping + friction - external work - initial energy; relative to the largest of those".into(),
             format!("units: {UNITS}; energies in N*mm (= mJ)"),
         ],
-        &[
-            "time [s]",
-            "programme fraction [-]",
-            "internal [N*mm]",
-            "contact [N*mm]",
-            "kinetic [N*mm]",
-            "external work [N*mm]",
-            "load work [N*mm]",
-            "damping [N*mm]",
-            "friction [N*mm]",
-            "balance error [N*mm]",
-            "relative balance error [-]",
-            "kinetic/internal [-]",
-        ],
-        &records
-            .iter()
-            .map(|r| {
-                let e = &r.energies;
-                vec![
-                    r.time,
-                    r.load,
-                    e.internal,
-                    e.contact,
-                    e.kinetic,
-                    e.external_work,
-                    e.load_work,
-                    e.damping,
-                    e.friction,
-                    e.balance_error,
-                    e.relative_balance_error,
-                    e.kinetic_ratio(),
-                ]
-            })
-            .collect::<Vec<_>>(),
-    )
-    .map_err(|e| io_err(&path, e))?;
-    let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
-        label: label.to_string(),
-        points: records.iter().map(|r| (r.time, f(r))).collect(),
-    };
-    let suffix = if matches!(status, RunStatus::Complete) {
-        ""
-    } else {
-        " (INCOMPLETE)"
-    };
-    write_panels(
-        &out.join("energy.png"),
-        &[
-            Panel {
-                title: format!("energies{suffix}"),
-                x_label: "time [s]".into(),
-                y_label: "energy [N*mm]".into(),
-                series: vec![
-                    series("internal", |r| r.energies.internal),
-                    series("external work", |r| r.energies.external_work),
-                    series("kinetic", |r| r.energies.kinetic),
-                    series("contact", |r| r.energies.contact),
-                    series("friction", |r| r.energies.friction),
-                    series("damping", |r| r.energies.damping),
-                ],
-            },
-            Panel {
-                title: "kinetic / internal energy".into(),
-                x_label: "time [s]".into(),
-                y_label: "KE / IE [%]".into(),
-                series: vec![series("KE/IE", |r| 100.0 * r.energies.kinetic_ratio())],
-            },
-            Panel {
-                title: "energy balance error".into(),
-                x_label: "time [s]".into(),
-                y_label: "log10 of the relative balance error [-]".into(),
-                series: vec![series("log10(|balance| / scale)", |r| {
-                    r.energies.relative_balance_error.max(1e-300).log10()
-                })],
-            },
-        ],
-        (1, 3),
-        (1800, 550),
+        records,
+        matches!(status, RunStatus::Complete),
+        &super::energy::EnergyAxis {
+            header: "programme fraction [-]",
+            label: "time [s]",
+            value: |r| r.time,
+        },
+        true,
     )
 }

@@ -24,7 +24,7 @@ use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
 use crate::model::Model;
 use crate::post::contour::{ContourMap, write_contour_png};
 use crate::post::csv::write_csv;
-use crate::post::fields::{ElementFields, area_mean, element_fields};
+use crate::post::fields::{ElementFields, FieldColumns, area_mean, element_fields};
 use crate::post::plot::{Panel, Series, write_panels};
 use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
 use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
@@ -264,17 +264,7 @@ fn write_state_vtu(
     let displacement_field: Vec<[f64; 3]> = (0..mesh.nodes.len())
         .map(|n| [u[3 * n], u[3 * n + 1], u[3 * n + 2]])
         .collect();
-    let column = |f: fn(&ElementFields) -> f64| fields.iter().map(f).collect::<Vec<f64>>();
-    let e22 = column(|f| f.e22);
-    let gamma = column(|f| f.shear_angle_deg);
-    let e_perp = column(|f| f.e_perp);
-    let i4 = column(|f| f.i4);
-    let i6 = column(|f| f.i6);
-    let i8 = column(|f| f.i8);
-    let i11 = column(|f| f.i11);
-    let k11 = column(|f| f.k11);
-    let w = column(|f| f.energy_density);
-    let stress: Vec<[f64; 3]> = fields.iter().map(|f| f.stress_xy).collect();
+    let columns = FieldColumns::new(fields);
     let zone: Vec<i32> = built.zones.iter().map(|z| z.index()).collect();
     let mut in_mdz = vec![0; mesh.triangles.len()];
     for &e in &built.mdz {
@@ -287,20 +277,12 @@ fn write_state_vtu(
             name: "displacement",
             data: FieldData::Vector3(&displacement_field),
         }],
-        cell_fields: vec![
-            Field { name: "E22", data: FieldData::Scalar(&e22) },
-            Field { name: "shear_angle_deg", data: FieldData::Scalar(&gamma) },
-            Field { name: "E_perp", data: FieldData::Scalar(&e_perp) },
-            Field { name: "I4", data: FieldData::Scalar(&i4) },
-            Field { name: "I6", data: FieldData::Scalar(&i6) },
-            Field { name: "I8", data: FieldData::Scalar(&i8) },
-            Field { name: "I11", data: FieldData::Scalar(&i11) },
-            Field { name: "k11", data: FieldData::Scalar(&k11) },
-            Field { name: "energy_density", data: FieldData::Scalar(&w) },
-            Field { name: "S", data: FieldData::SymTensor2(&stress) },
-            Field { name: "zone", data: FieldData::Int(&zone) },
-            Field { name: "mdz", data: FieldData::Int(&in_mdz) },
-        ],
+        cell_fields: {
+            let mut fields = columns.cell_fields();
+            fields.push(Field { name: "zone", data: FieldData::Int(&zone) });
+            fields.push(Field { name: "mdz", data: FieldData::Int(&in_mdz) });
+            fields
+        },
         comment: vec![
             format!("ncform: {} ({})", case.title, case.source),
             format!("clamp displacement {displacement} mm"),
@@ -635,9 +617,8 @@ fn write_energy(
     records: &[ExplicitRecord],
     status: &RunStatus,
 ) -> Result<(), String> {
-    let path = out.join("energy.csv");
-    write_csv(
-        &path,
+    super::energy::write_energy(
+        out,
         &[
             "ncform run: energy history of the explicit solver".to_string(),
             format!("case: {} ({})", case.title, case.source),
@@ -645,77 +626,14 @@ fn write_energy(
             "balance error = internal + kinetic + damping - external work - initial energy; relative to the largest of those".to_string(),
             format!("units: {UNITS}; energies in N*mm (= mJ)"),
         ],
-        &[
-            "time [s]",
-            "displacement [mm]",
-            "internal [N*mm]",
-            "kinetic [N*mm]",
-            "external work [N*mm]",
-            "damping [N*mm]",
-            "balance error [N*mm]",
-            "relative balance error [-]",
-            "kinetic/internal [-]",
-        ],
-        &records
-            .iter()
-            .map(|r| {
-                let e = &r.energies;
-                vec![
-                    r.time,
-                    r.load,
-                    e.internal,
-                    e.kinetic,
-                    e.external_work,
-                    e.damping,
-                    e.balance_error,
-                    e.relative_balance_error,
-                    e.kinetic_ratio(),
-                ]
-            })
-            .collect::<Vec<_>>(),
-    )
-    .map_err(|e| io_err(&path, e))?;
-    let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
-        label: label.to_string(),
-        points: records.iter().map(|r| (r.load, f(r))).collect(),
-    };
-    let suffix = if matches!(status, RunStatus::Complete) {
-        ""
-    } else {
-        " (INCOMPLETE)"
-    };
-    write_panels(
-        &out.join("energy.png"),
-        &[
-            Panel {
-                title: format!("energies{suffix}"),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "energy [N*mm]".into(),
-                series: vec![
-                    series("internal", |r| r.energies.internal),
-                    series("external work", |r| r.energies.external_work),
-                    series("kinetic", |r| r.energies.kinetic),
-                    series("damping", |r| r.energies.damping),
-                ],
-            },
-            Panel {
-                title: "kinetic / internal energy".into(),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "KE / IE [%]".into(),
-                series: vec![series("KE/IE", |r| 100.0 * r.energies.kinetic_ratio())],
-            },
-            Panel {
-                title: "energy balance error".into(),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "log10 of the relative balance error [-]".into(),
-                // Near round-off (1e-12 … 1e-9): a logarithmic scale reads.
-                series: vec![series("log10(|balance| / scale)", |r| {
-                    r.energies.relative_balance_error.max(1e-300).log10()
-                })],
-            },
-        ],
-        (1, 3),
-        (1800, 550),
+        records,
+        matches!(status, RunStatus::Complete),
+        &super::energy::EnergyAxis {
+            header: "displacement [mm]",
+            label: "clamp displacement [mm]",
+            value: |r| r.load,
+        },
+        false,
     )
 }
 

@@ -4,6 +4,7 @@
 //! second Piola–Kirchhoff stress in global axes. Reads results, changes
 //! nothing.
 
+use super::vtu::{Field, FieldData};
 use crate::material::{Invariants, MaterialError, MembraneMaterial};
 use crate::model::MembraneModel;
 
@@ -81,4 +82,85 @@ pub fn area_mean(model: &MembraneModel, elements: &[usize], value: impl Fn(usize
         (s + w * value(e), a + w)
     });
     if area > 0.0 { sum / area } else { 0.0 }
+}
+
+/// The fields of every element as columns, for VTU cell fields.
+#[derive(Debug, Clone, Default)]
+pub struct FieldColumns {
+    e22: Vec<f64>,
+    shear_angle_deg: Vec<f64>,
+    e_perp: Vec<f64>,
+    i4: Vec<f64>,
+    i6: Vec<f64>,
+    i8: Vec<f64>,
+    i11: Vec<f64>,
+    k11: Vec<f64>,
+    energy_density: Vec<f64>,
+    stress_xy: Vec<[f64; 3]>,
+}
+
+impl FieldColumns {
+    /// The columns of `fields`.
+    pub fn new(fields: &[ElementFields]) -> Self {
+        let column = |f: fn(&ElementFields) -> f64| fields.iter().map(f).collect::<Vec<f64>>();
+        Self {
+            e22: column(|f| f.e22),
+            shear_angle_deg: column(|f| f.shear_angle_deg),
+            e_perp: column(|f| f.e_perp),
+            i4: column(|f| f.i4),
+            i6: column(|f| f.i6),
+            i8: column(|f| f.i8),
+            i11: column(|f| f.i11),
+            k11: column(|f| f.k11),
+            energy_density: column(|f| f.energy_density),
+            stress_xy: fields.iter().map(|f| f.stress_xy).collect(),
+        }
+    }
+
+    /// The VTU cell fields `E22`, `shear_angle_deg`, `E_perp`, `I4`, `I6`,
+    /// `I8`, `I11`, `k11`, `energy_density` and the tensor `S`.
+    pub fn cell_fields(&self) -> Vec<Field<'_>> {
+        vec![
+            Field {
+                name: "E22",
+                data: FieldData::Scalar(&self.e22),
+            },
+            Field {
+                name: "shear_angle_deg",
+                data: FieldData::Scalar(&self.shear_angle_deg),
+            },
+            Field {
+                name: "E_perp",
+                data: FieldData::Scalar(&self.e_perp),
+            },
+            Field {
+                name: "I4",
+                data: FieldData::Scalar(&self.i4),
+            },
+            Field {
+                name: "I6",
+                data: FieldData::Scalar(&self.i6),
+            },
+            Field {
+                name: "I8",
+                data: FieldData::Scalar(&self.i8),
+            },
+            Field {
+                name: "I11",
+                data: FieldData::Scalar(&self.i11),
+            },
+            Field {
+                name: "k11",
+                data: FieldData::Scalar(&self.k11),
+            },
+            Field {
+                name: "energy_density",
+                data: FieldData::Scalar(&self.energy_density),
+            },
+            Field {
+                name: "S",
+                data: FieldData::SymTensor2(&self.stress_xy),
+            },
+        ]
+    }
 }
