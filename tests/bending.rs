@@ -2,9 +2,12 @@
 //! (`ncform::element::bending`, docs/bending.md): derivatives against
 //! finite differences, invariance under rigid motions, exactness on a
 //! structured cylinder, second-order convergence on a sphere, the pull-back
-//! `K = Fᵀ II F`, the material directions under shear, clamped and free
-//! edges, second-order convergence of a clamped cantilever, the explicit three-phase pass against the reference kernels, the
-//! frequency bound against dense eigenvalues, and the error cases.
+//! `K = Fᵀ II F` and the curvature on the unit material directions
+//! `κ_ab = ĝ_a·II·ĝ_b`, the material directions under shear, the
+//! invariance of `κ` and of the energy under in-plane stretch, clamped and
+//! free edges, second-order convergence of a clamped cantilever, the
+//! explicit three-phase pass against the reference kernels, the frequency
+//! bound against dense eigenvalues, and the error cases.
 //!
 //! Tolerances are derived at their use from the truncation error of the
 //! finite differences (estimated from the differences themselves with a
@@ -126,9 +129,9 @@ fn random_stencil(rng: &mut StdRng, curved: bool, kinds: Option<[HingeKind; 3]>)
 }
 
 /// A random current state of a stencil: in-plane stretch along the fibre
-/// (`I4 ∈ [0.95, 1.05]`) and shear up to 50°, random bending (a quadratic
-/// out-of-plane field of curvature up to 0.3/size plus noise), then a random
-/// rotation and translation.
+/// and across it (`I4, I8 ∈ [0.9, 1.1]`) and shear up to 50°, random
+/// bending (a quadratic out-of-plane field of curvature up to 0.3/size plus
+/// noise), then a random rotation and translation.
 fn random_state(rng: &mut StdRng, s: &Stencil) -> [V3; 6] {
     let n0 = s.frame.column(2).into_owned();
     let e1 = s.frame.column(0).into_owned();
@@ -137,9 +140,9 @@ fn random_state(rng: &mut StdRng, s: &Stencil) -> [V3; 6] {
     let b0 = n0.cross(&a0);
     let a = Vector2::new(a0.dot(&e1), a0.dot(&e2));
     let b = Vector2::new(b0.dot(&e1), b0.dot(&e2));
-    let stretch = rng.random_range(0.95f64..1.05).sqrt();
+    let stretch = rng.random_range(0.9f64..1.1).sqrt();
     let shear = rng.random_range(-50.0f64..50.0).to_radians();
-    let across = rng.random_range(0.9..1.1);
+    let across = rng.random_range(0.9f64..1.1).sqrt();
     let g1 = a * stretch;
     let g2 = (a * shear.sin() + b * shear.cos()) * across;
     // F_in maps a → g1, b → g2.
@@ -188,11 +191,12 @@ fn measures_within_clamp_limit(element: &BendingElement, x: &[V3; 6]) -> Option<
     }
 }
 
-/// Eq. (8) and Eqs. (11)–(14): the force is the gradient of the energy and
-/// the tangent the Jacobian of the force, at 1,200 random states (flat and
-/// curved references, all hinge kinds, stretch, shear up to 50°, bending,
-/// large rotations), at least 100 of them with clamped hinges (measure
-/// `2 sin θ`, Eq. (2c)) at angles up to 89°.
+/// Eq. (8) and Eqs. (11)–(13), (11a): the force is the gradient of the
+/// energy and the tangent the Jacobian of the force, at 1,200 random states
+/// (flat and curved references, all hinge kinds, stretch `I4, I8 ∈
+/// [0.9, 1.1]` so that every fibre-stretch term is active, shear up to
+/// 50°, bending, large rotations), at least 100 of them with clamped hinges
+/// (measure `2 sin θ`, Eq. (2c)) at angles up to 89°.
 #[test]
 fn force_and_tangent_match_finite_differences() {
     let mut rng = StdRng::seed_from_u64(1);
@@ -557,7 +561,9 @@ fn fitted_order(points: &[(f64, f64)]) -> f64 {
 
 /// Convergence on a sphere (docs/bending.md, "Accuracy"): a structured
 /// grid mapped onto a sphere of radius `R` by the azimuthal equidistant map
-/// gives `K → C/R` (the element metric over `R`). At the pole, where the map
+/// gives `K → C/R` (the element metric over `R`), i.e. on the unit material
+/// directions `κ → [1, 1, 2 cos ψ]/R` (`ψ` the angle between `g1` and
+/// `g2`, `cos ψ = C12/√(C11 C22)`; Eq. (5a)). At the pole, where the map
 /// does not grade the mesh, the relative error of the elements around the
 /// pole node falls at second order (fitted log-log slope over four
 /// refinements ≥ 1.8: order 2 less a margin for the pre-asymptotic range).
@@ -610,12 +616,13 @@ fn sphere_curvature_converges_at_second_order_on_an_ungraded_mesh() {
             let ref_edges =
                 edges(&reference).map(|e| Vector2::new(e.xy().dot(&a0), e.xy().dot(&b0)));
             let c = metric(&ref_edges, &edges(&x));
-            let c_norm = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / radius;
+            let expected = [1.0, 1.0, c[2] / (c[0] * c[1]).sqrt()].map(|v| v / radius);
+            let expected_norm = expected.iter().map(|v| v * v).sum::<f64>().sqrt();
             let error = (0..3)
-                .map(|v| (k[v] - c[v] / radius).powi(2))
+                .map(|v| (k[v] - expected[v]).powi(2))
                 .sum::<f64>()
                 .sqrt()
-                / c_norm;
+                / expected_norm;
             worst_patch = worst_patch.max(error);
             if triangles[e].contains(&pole_node) {
                 worst_pole = worst_pole.max(error);
@@ -631,10 +638,12 @@ fn sphere_curvature_converges_at_second_order_on_an_ungraded_mesh() {
     assert!(patch_order >= 0.9, "patch: fitted order {patch_order}");
 }
 
-/// The pull-back (docs/bending.md, Eqs. (3)–(5)): `K = Fᵀ II F` with the
-/// discrete shape operator `II = Σ θ̂_i l_i/(2A) t_i ⊗ t_i` built here from
-/// the current geometry and the kernel's hinge measures, `F` from the
-/// reference and current edges, at random states.
+/// The pull-back and the unit directions (docs/bending.md, Eqs. (3)–(5a)):
+/// `K = Fᵀ II F` and `κ_ab = ĝ_a · II · ĝ_b` (`g1 = F a0`, `g2 = F b0`,
+/// `ĝ = g/|g|`) with the discrete shape operator
+/// `II = Σ θ̂_i l_i/(2A) t_i ⊗ t_i` built here from the current geometry and
+/// the kernel's hinge measures, `F` from the reference and current edges,
+/// and `[I4, I8] = [|g1|², |g2|²]`, at random states.
 #[test]
 fn curvature_is_the_pull_back_of_the_shape_operator() {
     let mut rng = StdRng::seed_from_u64(3);
@@ -669,6 +678,13 @@ fn curvature_is_the_pull_back_of_the_shape_operator() {
         }
         let k = g.transpose() * shape * g;
         let voigt = [k[(0, 0)], k[(1, 1)], 2.0 * k[(0, 1)]];
+        let (g1, g2) = (g.column(0).into_owned(), g.column(1).into_owned());
+        let (u1, u2) = (g1.normalize(), g2.normalize());
+        let unit = [
+            (u1.transpose() * shape * u1)[0],
+            (u2.transpose() * shape * u2)[0],
+            2.0 * (u1.transpose() * shape * u2)[0],
+        ];
         // Round-off: both sides are products of ~10 rounded factors whose
         // inputs carry ε κ relative error (κ = coordinates/size); terms of
         // size ‖K‖ summed over three edges: 64 ε κ Σ|terms|, with
@@ -679,26 +695,50 @@ fn curvature_is_the_pull_back_of_the_shape_operator() {
             .sum::<f64>()
             * g.norm_squared();
         let tolerance = 64.0 * EPS * kappa * scale.max(f64::MIN_POSITIVE);
+        // κ = K divided by |g|² ≥ 0.9 (random_state): the same bound
+        // divided by 0.9, the division's rounding included in the 64 ε.
+        let unit_tolerance = tolerance / 0.9;
         for v in 0..3 {
-            let error = (voigt[v] - out.curvature[v]).abs();
+            let error = (voigt[v] - out.convected[v]).abs();
             assert!(
                 error <= tolerance,
                 "K[{v}] {} vs pull-back {}",
-                out.curvature[v],
+                out.convected[v],
                 voigt[v]
             );
             worst = worst.max(error / tolerance);
+            let error = (unit[v] - out.curvature[v]).abs();
+            assert!(
+                error <= unit_tolerance,
+                "κ[{v}] {} vs ĝ·II·ĝ {}",
+                out.curvature[v],
+                unit[v]
+            );
+            worst = worst.max(error / unit_tolerance);
+        }
+        // The squared stretches: |g|² of magnitude ~1 from products of
+        // ~6 rounded factors of relative error ε κ: 16 ε κ.
+        for (a, g) in [g1, g2].iter().enumerate() {
+            let error = (out.stretches[a] - g.norm_squared()).abs();
+            assert!(
+                error <= 16.0 * EPS * kappa,
+                "I[{a}] {} vs |g|² {}",
+                out.stretches[a],
+                g.norm_squared()
+            );
         }
     }
     eprintln!("worst error/tolerance {worst:.3}");
 }
 
 /// The curvature follows the material directions (docs/bending.md,
-/// "Following the fibres"): shear a flat grid in-plane (`x' = λ1 x`,
-/// `y' = γ x + λ2 y`), then bend it isometrically onto a cylinder about the
-/// (still straight) y-axis: `K11 = |g1|² κ(ĝ1)` and `K22 = |g2|² κ(ĝ2)` with
-/// `g1 = F a0`, `g2 = F b0` and the cylinder's normal curvature
-/// `κ(t) = (t·e_c)²/R` (Euler) along the current directions.
+/// "Following the fibres", Eq. (5a)): shear a flat grid in-plane
+/// (`x' = λ1 x`, `y' = γ x + λ2 y`), then bend it isometrically onto a
+/// cylinder about the (still straight) y-axis: `κ11 = κ(ĝ1)`,
+/// `κ22 = κ(ĝ2)` and `κ12 = ĝ1·II·ĝ2` — the normal curvatures along the
+/// current unit directions, no stretch factors — with `g1 = F a0`,
+/// `g2 = F b0` and the cylinder's normal curvature `κ(t) = (t·e_c)²/R`
+/// (Euler); the convected `K11 = |g1|² κ(ĝ1)`, `K22 = |g2|² κ(ĝ2)`.
 #[test]
 fn curvature_follows_the_sheared_rovings() {
     let radius = 80.0;
@@ -735,31 +775,171 @@ fn curvature_follows_the_sheared_rovings() {
         // Normal curvature along a current direction t (unit, in the
         // unrolled plane): (t_x)²/R.
         let normal_curvature = |g: Vector2<f64>| (g.x / g.norm()).powi(2) / radius;
-        let expected_11 = g1.norm_squared() * normal_curvature(g1);
-        let expected_22 = g2.norm_squared() * normal_curvature(g2);
-        let expected_12 = g1.x * g2.x / radius;
-        // Round-off as for the exact cylinder: 100 ε (R/h)²/R.
+        let unit = [
+            normal_curvature(g1),
+            normal_curvature(g2),
+            2.0 * (g1.x / g1.norm()) * (g2.x / g2.norm()) / radius,
+        ];
+        let convected = [
+            g1.norm_squared() * unit[0],
+            g2.norm_squared() * unit[1],
+            g1.norm() * g2.norm() * unit[2],
+        ];
+        // Round-off as for the exact cylinder: 100 ε (R/h)²/R for κ, and
+        // the same relative error for K = |g|² κ: times max |g|².
         let tolerance = 100.0 * EPS * (radius / h).powi(2) / radius;
+        let convected_tolerance = tolerance * g1.norm_squared().max(g2.norm_squared()).max(1.0);
         for (e, element) in elements.iter().enumerate() {
             if kinds[e].contains(&HingeKind::Free) {
                 continue;
             }
-            let k = element
+            let out = element
                 .curvature(&stencil_positions(&topology, e, &bent))
-                .expect("curvature")
-                .curvature;
-            for (v, expected) in [(0, expected_11), (1, expected_22), (2, 2.0 * expected_12)] {
-                let error = (k[v] - expected).abs();
-                assert!(
-                    error <= tolerance,
-                    "shear {shear_deg}°, fibre {fibre_deg}°: K[{v}] {} vs {expected}",
-                    k[v]
-                );
-                worst = worst.max(error * radius);
+                .expect("curvature");
+            for v in 0..3 {
+                for (name, value, expected, tolerance) in [
+                    ("κ", out.curvature[v], unit[v], tolerance),
+                    ("K", out.convected[v], convected[v], convected_tolerance),
+                ] {
+                    let error = (value - expected).abs();
+                    assert!(
+                        error <= tolerance,
+                        "shear {shear_deg}°, fibre {fibre_deg}°: {name}[{v}] {value} vs {expected}"
+                    );
+                    worst = worst.max(error * radius);
+                }
             }
         }
     }
-    eprintln!("worst |K − expected| R = {worst:e}");
+    eprintln!("worst |κ − expected|, |K − expected| R = {worst:e}");
+}
+
+/// In-plane stretch invariance (docs/bending.md, Eq. (5a), "Why unit
+/// directions"): a flat grid (rovings along x, so `a0 = x`, `b0 = y`) is
+/// stretched or compressed in-plane by `λ ∈ [0.9, 1.1]` along `a0` or along
+/// `b0` and then rolled isometrically (chords = stretched spacings) onto a
+/// cylinder of radius `R` about the y-axis (bending along `a0`) or about the
+/// x-axis (bending along `b0`). In every element with the rolled hinge the
+/// curvature along the rolled direction is `1/R` and the others vanish, for
+/// every `λ` (the convected `K` of the rolled direction is `λ²/R` when the
+/// stretch is along it: the old law's spurious compression mechanism); the
+/// stretches are `I = λ²`; and the total bending energy of the rolled
+/// shape is the same for every `λ`.
+#[test]
+fn stretched_cylinder_curvature_and_energy_do_not_depend_on_the_stretch() {
+    let (radius, h, nx, ny) = (40.0, 2.0, 8, 6);
+    let dy = 1.5 * h;
+    let d = stiffness();
+    let (flat, triangles) = grid(nx, ny, h, dy);
+    let topology = BendingTopology::new(&triangles, flat.len()).expect("topology");
+    let kinds = topology.free_hinge_kinds();
+    let elements = build_elements(&flat, &topology, &kinds, &V3::x());
+    let stretches = [0.9, 0.95, 1.0, 1.05, 1.1];
+    // Round-off of κ, as for the exact cylinder: 100 ε (R/h)² relative to
+    // 1/R, with the smallest spacing 0.9 h.
+    let relative = 100.0 * EPS * (radius / (0.9 * h)).powi(2);
+    let tolerance = relative / radius;
+    let mut worst_kappa = 0.0f64;
+    let mut worst_energy = 0.0f64;
+    for stretch_along_b0 in [false, true] {
+        for bend_along_b0 in [false, true] {
+            let mut energies = Vec::new();
+            let mut bent_elements = 0;
+            for &lambda in &stretches {
+                let (lx, ly) = if stretch_along_b0 {
+                    (1.0, lambda)
+                } else {
+                    (lambda, 1.0)
+                };
+                let rolled: Vec<V3> = flat
+                    .iter()
+                    .map(|p| {
+                        let (x, y) = (lx * p.x, ly * p.y);
+                        if bend_along_b0 {
+                            let alpha = 2.0 * (ly * dy / (2.0 * radius)).asin();
+                            let phi = (p.y / dy).round() * alpha;
+                            V3::new(x, radius * phi.sin(), radius * (1.0 - phi.cos()))
+                        } else {
+                            let alpha = 2.0 * (lx * h / (2.0 * radius)).asin();
+                            let phi = (p.x / h).round() * alpha;
+                            V3::new(radius * phi.sin(), y, radius * (1.0 - phi.cos()))
+                        }
+                    })
+                    .collect();
+                let (rolled_index, rolled_stretch) = if bend_along_b0 { (1, ly) } else { (0, lx) };
+                let mut energy = 0.0;
+                bent_elements = 0;
+                for (e, element) in elements.iter().enumerate() {
+                    let x = stencil_positions(&topology, e, &rolled);
+                    let out = element.curvature(&x).expect("curvature");
+                    energy += element.energy(&x, &d).expect("energy");
+                    // Stretches: I4 = lx², I8 = ly² to the round-off of a
+                    // few products of coordinates ~R over sizes ~h.
+                    for (a, l) in [lx, ly].iter().enumerate() {
+                        assert!(
+                            (out.stretches[a] - l * l).abs() <= relative,
+                            "λ {lambda}: I[{a}] = {} vs {}",
+                            out.stretches[a],
+                            l * l
+                        );
+                    }
+                    // Elements whose rolled hinge is a free edge carry no
+                    // curvature at all (docs/bending.md, "Limits").
+                    if out.curvature[rolled_index].abs() < 0.5 / radius {
+                        assert!(out.curvature.iter().all(|k| k.abs() <= tolerance));
+                        continue;
+                    }
+                    bent_elements += 1;
+                    for v in 0..3 {
+                        let expected = if v == rolled_index { 1.0 / radius } else { 0.0 };
+                        let error = (out.curvature[v] - expected).abs();
+                        assert!(
+                            error <= tolerance,
+                            "stretch along {}, bend along {}, λ {lambda}: κ[{v}] = {} vs {expected}",
+                            if stretch_along_b0 { "b0" } else { "a0" },
+                            if bend_along_b0 { "b0" } else { "a0" },
+                            out.curvature[v]
+                        );
+                        worst_kappa = worst_kappa.max(error * radius);
+                    }
+                    // The convected K carries the squared stretch of the
+                    // rolled direction (same relative round-off).
+                    let convected = rolled_stretch * rolled_stretch / radius;
+                    assert!(
+                        (out.convected[rolled_index] - convected).abs() <= 1.21 * tolerance,
+                        "K[{rolled_index}] = {} vs λ²/R = {convected}",
+                        out.convected[rolled_index]
+                    );
+                }
+                energies.push(energy);
+            }
+            assert!(bent_elements > 0);
+            // Each energy is a sum of A0 ½ B κ² with κ of relative error
+            // ≤ `relative` (the other components are round-off, O(relative²)
+            // in the energy): relative error ≤ 2·relative each, so two
+            // energies differ by ≤ 4·relative of themselves.
+            let reference = energies[2];
+            assert!(reference > 0.0);
+            for (lambda, energy) in stretches.iter().zip(&energies) {
+                let change = (energy - reference).abs() / reference;
+                assert!(
+                    change <= 4.0 * relative,
+                    "stretch along {}, bend along {}, λ {lambda}: W = {energy} vs {reference} at λ = 1 \
+                     (relative change {change:e} > {:e})",
+                    if stretch_along_b0 { "b0" } else { "a0" },
+                    if bend_along_b0 { "b0" } else { "a0" },
+                    4.0 * relative
+                );
+                worst_energy = worst_energy.max(change);
+            }
+        }
+    }
+    eprintln!(
+        "worst |κ − expected| R = {worst_kappa:e}, worst relative energy change {worst_energy:e} \
+         (allowed {:e} and {:e})",
+        relative,
+        4.0 * relative
+    );
 }
 
 /// Rotates the nodes rigidly by `psi` about the x-axis (the line y = z = 0).
@@ -1036,8 +1216,10 @@ fn assembled_forces(
     (f, largest)
 }
 
-/// A small mesh with interior, free and clamped edges, bent onto a
-/// cylinder with a random perturbation, and its displacements.
+/// A small mesh with interior, free and clamped edges, stretched and sheared
+/// in-plane (stretches 0.93–1.06, so the fibre-stretch terms of Eq. (8)
+/// are active), bent onto a cylinder with a random perturbation, and its
+/// displacements.
 fn bent_mesh(rng: &mut StdRng, nx: usize, ny: usize) -> (Vec<V3>, Vec<[usize; 3]>, Vec<f64>) {
     let (mut nodes, triangles) = grid(nx, ny, 2.5, 2.0);
     // A curved reference for some cases: a gentle paraboloid.
@@ -1047,8 +1229,9 @@ fn bent_mesh(rng: &mut StdRng, nx: usize, ny: usize) -> (Vec<V3>, Vec<[usize; 3]
     let radius = 30.0;
     let mut u = vec![0.0; 3 * nodes.len()];
     for (n, p) in nodes.iter().enumerate() {
-        let phi = p.x / radius;
-        let target = V3::new(radius * phi.sin(), p.y, radius * (1.0 - phi.cos()) + p.z);
+        let (x, y) = (1.06 * p.x + 0.15 * p.y, 0.1 * p.x + 0.93 * p.y);
+        let phi = x / radius;
+        let target = V3::new(radius * phi.sin(), y, radius * (1.0 - phi.cos()) + p.z);
         for c in 0..3 {
             u[3 * n + c] = target[c] - p[c] + rng.random_range(-0.05..0.05);
         }
@@ -1119,7 +1302,9 @@ fn explicit_phases_equal_the_reference_forces() {
 /// The frequency bound (docs/bending.md, "Frequency bound"): for random
 /// elements and states, `max_frequency_squared ≥ λmax(M^{-½} K_e M^{-½})`
 /// (dense eigenvalues of the exact tangent over the used slots), and not
-/// loose by more than a factor 10; with each stencil given the mass share
+/// loose by more than a factor 50 (the random states are strongly bent,
+/// where the triangle-inequality rest partly cancels the Gauss–Newton
+/// part; docs/bending.md, "Frequency bound"); with each stencil given the mass share
 /// `m_n / count_n`, the largest element bound is at least the largest
 /// eigenvalue of the assembled bending tangent with the nodal masses.
 #[test]

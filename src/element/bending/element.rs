@@ -8,8 +8,11 @@
 //! counter-clockwise), `N = e_0 × e_1 = 2A n`, lengths `l_k = |e_k|`,
 //! `J = |N| / (2 A0)`, `ρ_i = J / l_i`, hinge measures `θ̂_i` (`2 sin(θ_i/2)`
 //! on interior edges, `2 sin θ_i` on clamped ones), `φ_i = θ̂_i ρ_i`,
-//! curvature `K = Σ_i φ_i c_i` (Voigt `[K11, K22, 2K12]` in the reference
-//! fibre basis), `ΔK = K − K0`, energy `W = A0 ½ ΔKᵀ D ΔK`.
+//! convected curvature `K = Σ_i φ_i c_i` (Voigt `[K11, K22, 2K12]` in the
+//! reference fibre basis), the current fibre vectors `g1 = F a0`,
+//! `g2 = F b0` with `I4 = g1·g1`, `I8 = g2·g2`, the curvature on the unit
+//! material directions `κ = [K11/I4, K22/I8, 2K12/√(I4 I8)]`,
+//! `Δκ = κ − κ0`, energy `W = A0 ½ Δκᵀ D Δκ`.
 
 // Index loops mirror the indices of the formulas (nodes, edges, components).
 #![allow(clippy::needless_range_loop)]
@@ -24,7 +27,7 @@ use super::{
 type V3 = Vector3<f64>;
 type M3 = Matrix3<f64>;
 
-/// Reference data of one bending element (built once; 23 numbers and the
+/// Reference data of one bending element (built once; 29 numbers and the
 /// hinge kinds).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendingElement {
@@ -32,24 +35,42 @@ pub struct BendingElement {
     pub kinds: [HingeKind; 3],
     /// `c_i = ℓ_i² / (2 A0) · Voigt(ν_i ⊗ ν_i)`, Voigt `[11, 22, 2·12]` in
     /// the fibre basis `(a0, b0)`, `ν_i` the outward unit normal of edge
-    /// `i` in the reference plane [dimensionless] (docs/bending.md, Eq. (5)).
+    /// `i` in the reference plane \[dimensionless\] (docs/bending.md, Eq. (5)).
     pub coefficients: [[f64; 3]; 3],
-    /// Reference curvature `K0` [1/mm], Voigt `[K11, K22, 2K12]`.
+    /// Reference curvature `κ0` [1/mm], Voigt `[κ11, κ22, 2κ12]`: Eq. (5a)
+    /// on the reference geometry (`I4 = I8 = 1` there, so `κ0 = K0`).
     pub reference_curvature: [f64; 3],
-    /// Reference area `A0` [mm²].
+    /// Reference area `A0` \[mm²\].
     pub area: f64,
-    /// The ghost vertex of each clamped edge [mm] (zero for other edges):
+    /// The ghost vertex of each clamped edge \[mm\] (zero for other edges):
     /// the mirror image of node `i` across the line of edge `i`.
     pub ghosts: [[f64; 3]; 3],
+    /// The shape-function gradients along the reference fibre basis
+    /// [1/mm]: `[∂N_a/∂a0, ∂N_a/∂b0]` for the own nodes `a = 0, 1, 2`
+    /// (`∂N_a/∂a0 = −(E_a × n0)·a0 / (2 A0)`, `E_a` the reference edge
+    /// opposite node `a`; each row sums to zero). They give the current
+    /// fibre vectors `g1 = F a0 = Σ_a (∂N_a/∂a0) x_a` and `g2 = F b0`
+    /// (docs/bending.md, Eq. (5a)).
+    pub fibre_gradients: [[f64; 3]; 2],
 }
 
-/// Curvature of one element (docs/bending.md, Eq. (5)).
+/// Curvature of one element (docs/bending.md, Eqs. (5), (5a)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendingCurvature {
-    /// `K` [1/mm], Voigt `[K11, K22, 2K12]` in the reference fibre basis.
+    /// The curvature on the current unit material directions `κ` [1/mm],
+    /// Voigt `[κ11, κ22, 2κ12]`: `κ_ab = ĝ_a · II · ĝ_b`, the normal
+    /// curvature along the current unit rovings `ĝ1` and stitching `ĝ2`
+    /// and the twist between them (Eq. (5a)). The bending law acts on it.
     pub curvature: [f64; 3],
-    /// `ΔK = K − K0` [1/mm], same storage.
+    /// `Δκ = κ − κ0` [1/mm], same storage.
     pub change: [f64; 3],
+    /// The convected curvature `K = Fᵀ II F` [1/mm], Voigt
+    /// `[K11, K22, 2K12]` in the reference fibre basis (Eq. (5)):
+    /// `K11 = I4 κ11`, `K22 = I8 κ22`, `K12 = √(I4 I8) κ12`.
+    pub convected: [f64; 3],
+    /// The squared fibre stretches `[I4, I8] = [g1·g1, g2·g2]`
+    /// \[dimensionless\], `g1 = F a0`, `g2 = F b0` (Eq. (5a)).
+    pub stretches: [f64; 2],
     /// The hinge measures: `θ̂_i = 2 sin(θ_i/2)` on interior edges,
     /// `m_c = 2 sin θ_i` on clamped edges (the measure of the mirror angle
     /// `2θ_i`, docs/bending.md, Eq. (2c)), zero on free edges.
@@ -61,7 +82,7 @@ pub struct BendingCurvature {
 pub struct BendingForce {
     /// `W_e` [N·mm].
     pub energy: f64,
-    /// `∂W_e/∂x` [N] over the six slots, node-major (ignored slots zero).
+    /// `∂W_e/∂x` \[N\] over the six slots, node-major (ignored slots zero).
     pub force: StencilVector,
 }
 
@@ -70,7 +91,7 @@ pub struct BendingForce {
 pub struct BendingTangent {
     /// `W_e` [N·mm].
     pub energy: f64,
-    /// `∂W_e/∂x` [N], node-major over the six slots.
+    /// `∂W_e/∂x` \[N\], node-major over the six slots.
     pub force: StencilVector,
     /// `∂²W_e/∂x²` [N/mm], 18×18, symmetric to round-off; rows and columns
     /// of ignored slots are zero.
@@ -190,10 +211,29 @@ struct State {
     lengths: [f64; 3],
     /// `ρ_i = J / l_i`.
     rho: [f64; 3],
+    /// `g1 = F a0`, `g2 = F b0`.
+    fibres: [V3; 2],
+    /// `[I4, I8]`.
+    stretches: [f64; 2],
+    /// The stretch factors `s_v(I4, I8) = [1/I4, 1/I8, 1/√(I4 I8)]`
+    /// (`κ_v = s_v K_v`), their first derivatives `∂s_v/∂I_α` and second
+    /// derivatives `∂²s_v/∂I_α∂I_β` (`α, β ∈ {I4, I8}`).
+    scales: [f64; 3],
+    scale_slopes: [[f64; 2]; 3],
+    scale_bends: [[[f64; 2]; 2]; 3],
+    /// `K`.
+    convected: [f64; 3],
+    /// `κ`.
     curvature: [f64; 3],
+    /// `Δκ`.
     change: [f64; 3],
-    /// `μ_i = ∂W/∂φ_i = A0 c_iᵀ D ΔK`.
+    /// `M_v = A0 D_v Δκ_v = ∂W/∂κ_v`.
+    moment: [f64; 3],
+    /// `μ_i = ∂W/∂φ_i = Σ_v c_iv s_v M_v`.
     mu: [f64; 3],
+    /// `∂W/∂I_α = Σ_v M_v K_v ∂s_v/∂I_α` (the factors of `∇I4`, `∇I8` in
+    /// the force, Eq. (8)).
+    stretch_forces: [f64; 2],
     energy: f64,
 }
 
@@ -232,6 +272,31 @@ fn clamped_hinge_measure(edge: usize, sin: f64, cos: f64) -> Result<(f64, f64, f
     Ok((measure, 2.0 * cos, -measure))
 }
 
+/// The stretch factors of Eq. (5a), `κ_v = s_v K_v`, and their derivatives
+/// in `(I4, I8)`: `s = [1/I4, 1/I8, 1/√(I4 I8)]`, `∂s_v/∂I_α` and
+/// `∂²s_v/∂I_α∂I_β` (docs/bending.md, Eq. (11a)). One division and one
+/// square root.
+#[allow(clippy::type_complexity)]
+fn stretch_scales(stretches: [f64; 2]) -> ([f64; 3], [[f64; 2]; 3], [[[f64; 2]; 2]; 3]) {
+    let [i4, i8] = stretches;
+    let inv_product = 1.0 / (i4 * i8);
+    let (s1, s2, s3) = (i8 * inv_product, i4 * inv_product, inv_product.sqrt());
+    let slopes = [
+        [-s1 * s1, 0.0],
+        [0.0, -s2 * s2],
+        [-0.5 * s3 * s1, -0.5 * s3 * s2],
+    ];
+    let bends = [
+        [[2.0 * s1 * s1 * s1, 0.0], [0.0, 0.0]],
+        [[0.0, 0.0], [0.0, 2.0 * s2 * s2 * s2]],
+        [
+            [0.75 * s3 * s1 * s1, 0.25 * s3 * s1 * s2],
+            [0.25 * s3 * s1 * s2, 0.75 * s3 * s2 * s2],
+        ],
+    ];
+    ([s1, s2, s3], slopes, bends)
+}
+
 /// Largest eigenvalue of a symmetric 3×3 matrix (trigonometric closed form:
 /// `q = tr m / 3`, `p² = ‖m − qI‖²_F / 6`, `λmax = q + 2p cos(acos(det B / 2)/3)`).
 fn largest_eigenvalue(m: &M3) -> f64 {
@@ -266,10 +331,10 @@ fn add_block(k: &mut StencilMatrix, a: usize, b: usize, block: &M3, scale: f64) 
 
 impl BendingElement {
     /// Sets up an element from the reference positions of its six slots
-    /// [mm] (slots of free and clamped edges are not read), its hinge kinds
+    /// \[mm\] (slots of free and clamped edges are not read), its hinge kinds
     /// and a global fibre direction (projected on the triangle's plane and
     /// normalised to give `a0`; `b0 = n0 × a0`). Clamped edges get their
-    /// ghost vertex; `K0` is the curvature of the reference geometry
+    /// ghost vertex; `κ0` is the curvature (5a) of the reference geometry
     /// (docs/bending.md, "Reference data").
     ///
     /// # Errors
@@ -301,6 +366,7 @@ impl BendingElement {
         let b0 = n0.cross(&a0);
         let mut coefficients = [[0.0; 3]; 3];
         let mut ghosts = [[0.0; 3]; 3];
+        let mut fibre_gradients = [[0.0; 3]; 2];
         for i in 0..3 {
             let edge = own.e[i];
             let length2 = edge.norm_squared();
@@ -309,6 +375,10 @@ impl BendingElement {
             let (v1, v2) = (outward.dot(&a0), outward.dot(&b0));
             let scale = length2 / (2.0 * area);
             coefficients[i] = [scale * v1 * v1, scale * v2 * v2, scale * 2.0 * v1 * v2];
+            // ∇N_i = −ℓ_i ν_i / (2 A0): towards node i, of size 1/altitude.
+            let gradient_scale = -length2.sqrt() / (2.0 * area);
+            fibre_gradients[0][i] = gradient_scale * v1;
+            fibre_gradients[1][i] = gradient_scale * v2;
             if kinds[i] == HingeKind::Clamped {
                 // Mirror x_i across the line through x_{i+1} along e_i.
                 let start = x[(i + 1) % 3];
@@ -317,12 +387,18 @@ impl BendingElement {
                 ghosts[i] = (2.0 * foot - x[i]).into();
             }
         }
+        // Node 0's gradient from the other two, so that each row sums to
+        // zero exactly and g = F a0 depends on the edges only.
+        for row in &mut fibre_gradients {
+            row[0] = -(row[1] + row[2]);
+        }
         let mut element = Self {
             kinds,
             coefficients,
             reference_curvature: [0.0; 3],
             area,
             ghosts,
+            fibre_gradients,
         };
         let reference = element.state(x, &BendingStiffness::new(0.0, 0.0, 0.0)?)?;
         element.reference_curvature = reference.curvature;
@@ -389,33 +465,57 @@ impl BendingElement {
                 phi[i] = measure * rho[i];
             }
         }
-        let mut curvature = [0.0; 3];
+        let mut convected = [0.0; 3];
         for (i, c) in self.coefficients.iter().enumerate() {
             for v in 0..3 {
-                curvature[v] += phi[i] * c[v];
+                convected[v] += phi[i] * c[v];
             }
         }
+        // g1 = F a0 = Σ_a p_a x_a = p_1 (x_1 − x_0) + p_2 (x_2 − x_0)
+        // = p_1 e_2 − p_2 e_1 (Σ_a p_a = 0), likewise g2 (Eq. (5a)).
+        let fibres = self
+            .fibre_gradients
+            .map(|p| own.e[2] * p[1] - own.e[1] * p[2]);
+        let stretches = fibres.map(|g| g.norm_squared());
+        let (scales, scale_slopes, scale_bends) = stretch_scales(stretches);
+        let curvature: [f64; 3] = std::array::from_fn(|v| scales[v] * convected[v]);
         let d = stiffness.diagonal();
         let change: [f64; 3] = std::array::from_fn(|v| curvature[v] - self.reference_curvature[v]);
         let moment: [f64; 3] = std::array::from_fn(|v| self.area * d[v] * change[v]);
+        let scaled_moment: [f64; 3] = std::array::from_fn(|v| scales[v] * moment[v]);
         let mu = self
             .coefficients
-            .map(|c| c[0] * moment[0] + c[1] * moment[1] + c[2] * moment[2]);
+            .map(|c| c[0] * scaled_moment[0] + c[1] * scaled_moment[1] + c[2] * scaled_moment[2]);
+        let stretch_forces: [f64; 2] = std::array::from_fn(|a| {
+            (0..3)
+                .map(|v| moment[v] * convected[v] * scale_slopes[v][a])
+                .sum()
+        });
         let energy = 0.5 * (0..3).map(|v| moment[v] * change[v]).sum::<f64>();
         Ok(State {
             own,
             hinges,
             lengths,
             rho,
+            fibres,
+            stretches,
+            scales,
+            scale_slopes,
+            scale_bends,
+            convected,
             curvature,
             change,
+            moment,
             mu,
+            stretch_forces,
             energy,
         })
     }
 
-    /// `K`, `ΔK` and the hinge measures at the current positions `x` [mm]
-    /// (docs/bending.md, Eq. (5)).
+    /// The curvature `κ` on the current unit material directions, `Δκ`,
+    /// the convected curvature `K`, the squared fibre stretches `I4`, `I8`
+    /// and the hinge measures at the current positions `x` \[mm\]
+    /// (docs/bending.md, Eqs. (5), (5a)).
     ///
     /// # Errors
     /// A non-finite position, a degenerate own or partner triangle, a
@@ -426,11 +526,13 @@ impl BendingElement {
         Ok(BendingCurvature {
             curvature: s.curvature,
             change: s.change,
+            convected: s.convected,
+            stretches: s.stretches,
             hinge_measures: s.hinges.map(|h| h.measure),
         })
     }
 
-    /// `W_e = A0 ½ ΔKᵀ D ΔK` [N·mm] (docs/bending.md, Eq. (7)).
+    /// `W_e = A0 ½ Δκᵀ D Δκ` [N·mm] (docs/bending.md, Eq. (7)).
     ///
     /// # Errors
     /// As [`BendingElement::curvature`].
@@ -477,8 +579,24 @@ impl BendingElement {
         grads.0 * (s.rho[i] * h.slope) + grads.1 * h.measure
     }
 
-    /// Energy and internal force `∂W_e/∂x = Σ_i μ_i ∂φ_i/∂x` [N] at the
-    /// current positions `x` [mm] (docs/bending.md, Eq. (8)).
+    /// `∇I4 = ∂(g1·g1)/∂x` and `∇I8` over the own slots:
+    /// `∂I4/∂x_a = 2 (∂N_a/∂a0) g1`, `∂I8/∂x_a = 2 (∂N_a/∂b0) g2`
+    /// (docs/bending.md, Eq. (10a)).
+    fn stretch_gradients(&self, s: &State) -> [StencilVector; 2] {
+        std::array::from_fn(|alpha| {
+            let mut gradient = StencilVector::zeros();
+            for a in 0..3 {
+                gradient
+                    .fixed_rows_mut::<3>(3 * a)
+                    .copy_from(&(s.fibres[alpha] * (2.0 * self.fibre_gradients[alpha][a])));
+            }
+            gradient
+        })
+    }
+
+    /// Energy and internal force
+    /// `∂W_e/∂x = Σ_i μ_i ∂φ_i/∂x + (∂W/∂I4) ∇I4 + (∂W/∂I8) ∇I8` \[N\] at the
+    /// current positions `x` \[mm\] (docs/bending.md, Eq. (8)).
     ///
     /// # Errors
     /// As [`BendingElement::curvature`].
@@ -493,23 +611,72 @@ impl BendingElement {
             let grads = self.hinge_gradients(&s, i);
             force += Self::phi_gradient(&s, i, &grads) * s.mu[i];
         }
+        for (gradient, factor) in self.stretch_gradients(&s).iter().zip(s.stretch_forces) {
+            force += gradient * factor;
+        }
         Ok(BendingForce {
             energy: s.energy,
             force,
         })
     }
 
-    /// `H_ij = ∂²W/∂φ_i∂φ_j = A0 c_iᵀ D c_j`.
-    fn phi_hessian(&self, stiffness: &BendingStiffness) -> M3 {
-        let d = stiffness.diagonal();
-        let c = &self.coefficients;
-        M3::from_fn(|i, j| self.area * (0..3).map(|v| c[i][v] * d[v] * c[j][v]).sum::<f64>())
+    /// `∇κ_v = s_v ∇K_v + K_v Σ_α (∂s_v/∂I_α) ∇I_α` with
+    /// `∇K_v = Σ_i c_iv ∇φ_i` (docs/bending.md, Eq. (11a)).
+    fn curvature_gradients(
+        &self,
+        s: &State,
+        grad_phi: &[StencilVector; 3],
+        grad_stretch: &[StencilVector; 2],
+    ) -> [StencilVector; 3] {
+        std::array::from_fn(|v| {
+            let mut gradient = StencilVector::zeros();
+            for i in 0..3 {
+                gradient += grad_phi[i] * (s.scales[v] * self.coefficients[i][v]);
+            }
+            for alpha in 0..2 {
+                gradient += grad_stretch[alpha] * (s.convected[v] * s.scale_slopes[v][alpha]);
+            }
+            gradient
+        })
     }
 
-    /// Energy, force and the exact tangent
-    /// `∂²W/∂x² = Σ_ij H_ij ∇φ_i ∇φ_jᵀ + Σ_i μ_i ∇²φ_i` [N/mm] with every term
-    /// of `∇²φ_i` (the hinge-angle Hessian, the area ratio and the edge
-    /// lengths; docs/bending.md, Eqs. (11)–(14)).
+    /// The vectors `u_α = Σ_v M_v (∂s_v/∂I_α) ∇K_v` of the mixed terms
+    /// `∇I_α u_αᵀ + u_α ∇I_αᵀ` of the tangent (docs/bending.md, Eq. (11a)).
+    fn mixed_vectors(&self, s: &State, grad_phi: &[StencilVector; 3]) -> [StencilVector; 2] {
+        std::array::from_fn(|alpha| {
+            let mut vector = StencilVector::zeros();
+            for i in 0..3 {
+                let weight: f64 = (0..3)
+                    .map(|v| s.moment[v] * s.scale_slopes[v][alpha] * self.coefficients[i][v])
+                    .sum();
+                vector += grad_phi[i] * weight;
+            }
+            vector
+        })
+    }
+
+    /// `S_αβ = Σ_v M_v K_v ∂²s_v/∂I_α∂I_β` (docs/bending.md, Eq. (11a)).
+    fn stretch_hessian(s: &State) -> [[f64; 2]; 2] {
+        std::array::from_fn(|alpha| {
+            std::array::from_fn(|beta| {
+                (0..3)
+                    .map(|v| s.moment[v] * s.convected[v] * s.scale_bends[v][alpha][beta])
+                    .sum()
+            })
+        })
+    }
+
+    /// Energy, force and the exact tangent [N/mm]
+    ///
+    /// ```text
+    /// ∂²W/∂x² = Σ_v A0 D_v ∇κ_v ∇κ_vᵀ + Σ_i μ_i ∇²φ_i
+    ///         + Σ_α (∇I_α u_αᵀ + u_α ∇I_αᵀ) + Σ_αβ S_αβ ∇I_α ∇I_βᵀ
+    ///         + Σ_α (∂W/∂I_α) ∇²I_α
+    /// ```
+    ///
+    /// with every term of `∇²φ_i` (the hinge-angle Hessian, the area ratio
+    /// and the edge lengths) and of the fibre stretches (docs/bending.md,
+    /// Eqs. (11)–(13), (11a)).
     ///
     /// # Errors
     /// As [`BendingElement::curvature`].
@@ -519,7 +686,6 @@ impl BendingElement {
         stiffness: &BendingStiffness,
     ) -> Result<BendingTangent, BendingError> {
         let s = self.state(x, stiffness)?;
-        let h = self.phi_hessian(stiffness);
         let mut force = StencilVector::zeros();
         let mut k = StencilMatrix::zeros();
         let mut grad_phi = [StencilVector::zeros(); 3];
@@ -562,10 +728,39 @@ impl BendingElement {
                 }
             }
         }
-        for i in 0..3 {
-            for j in 0..3 {
-                if h[(i, j)] != 0.0 {
-                    k += grad_phi[i] * grad_phi[j].transpose() * h[(i, j)];
+        let grad_stretch = self.stretch_gradients(&s);
+        for (gradient, factor) in grad_stretch.iter().zip(s.stretch_forces) {
+            force += gradient * factor;
+        }
+        // Gauss–Newton part Σ_v A0 D_v ∇κ_v ∇κ_vᵀ.
+        let d = stiffness.diagonal();
+        let grad_kappa = self.curvature_gradients(&s, &grad_phi, &grad_stretch);
+        for v in 0..3 {
+            if d[v] != 0.0 {
+                k += grad_kappa[v] * grad_kappa[v].transpose() * (self.area * d[v]);
+            }
+        }
+        // Mixed terms Σ_α (∇I_α u_αᵀ + u_α ∇I_αᵀ).
+        for (gradient, mixed) in grad_stretch.iter().zip(self.mixed_vectors(&s, &grad_phi)) {
+            let product = gradient * mixed.transpose();
+            k += product + product.transpose();
+        }
+        // Σ_αβ S_αβ ∇I_α ∇I_βᵀ + Σ_α (∂W/∂I_α) ∇²I_α, with the own-node
+        // blocks ∂²I4/∂x_a∂x_b = 2 (∂N_a/∂a0)(∂N_b/∂a0) I (Eq. (11a)).
+        let stretch_hessian = Self::stretch_hessian(&s);
+        for alpha in 0..2 {
+            for beta in 0..2 {
+                k += grad_stretch[alpha]
+                    * grad_stretch[beta].transpose()
+                    * stretch_hessian[alpha][beta];
+            }
+            let p = &self.fibre_gradients[alpha];
+            for a in 0..3 {
+                for b in 0..3 {
+                    let value = 2.0 * s.stretch_forces[alpha] * p[a] * p[b];
+                    for c in 0..3 {
+                        k[(3 * a + c, 3 * b + c)] += value;
+                    }
                 }
             }
         }
@@ -605,10 +800,11 @@ impl BendingElement {
     }
 
     /// An upper bound of `λmax(M⁻¹ K_e)` [1/s²] for the element tangent
-    /// `K_e` at `x` [mm] and lumped masses `masses` [t] of the six slots
+    /// `K_e` at `x` \[mm\] and lumped masses `masses` \[t\] of the six slots
     /// (only the slots the element uses are read; they must be positive).
-    /// The Gauss–Newton part `Σ H_ij ∇φ_i∇φ_jᵀ` is taken exactly through a
-    /// 3×3 eigenvalue; the rest `Σ μ_i ∇²φ_i` is bounded by block norms
+    /// The Gauss–Newton part `Σ_v A0 D_v ∇κ_v∇κ_vᵀ` is taken exactly
+    /// through a 3×3 eigenvalue; the rest (`Σ μ_i ∇²φ_i` and the
+    /// fibre-stretch terms of Eq. (11a)) is bounded by block norms
     /// (docs/bending.md, "Frequency bound"). Where several stencils share a
     /// node, give each the share `m_n / count_n`
     /// ([`super::BendingTopology::stencil_counts`]): then the maximum over
@@ -674,23 +870,43 @@ impl BendingElement {
                 + 2.0 * slope * grad_theta_m2.sqrt() * grad_rho_m;
             rest += s.mu[i].abs() * bound;
         }
-        // Gauss–Newton part: A0 λmax(D^½ C G Cᵀ D^½), G = Φᵀ M⁻¹ Φ.
-        let g = M3::from_fn(|i, j| {
+        // The fibre-stretch terms (Eq. (11a)): mixed terms
+        // ‖∇I_α u_αᵀ + u_α ∇I_αᵀ‖ ≤ 2 ‖∇I_α‖ ‖u_α‖, rank-one terms through
+        // mass norms, and ∇²I_α = 2 p pᵀ ⊗ I (p the fibre gradients), whose
+        // scaled norm is exactly 2 Σ_a p_a² / m_a.
+        let grad_stretch = self.stretch_gradients(&s);
+        let stretch_norm = grad_stretch.map(|g| mass_norm_squared(&g, masses, &used).sqrt());
+        let mixed = self.mixed_vectors(&s, &grad_phi);
+        let stretch_hessian = Self::stretch_hessian(&s);
+        for alpha in 0..2 {
+            rest +=
+                2.0 * stretch_norm[alpha] * mass_norm_squared(&mixed[alpha], masses, &used).sqrt();
+            for beta in 0..2 {
+                rest +=
+                    stretch_hessian[alpha][beta].abs() * stretch_norm[alpha] * stretch_norm[beta];
+            }
+            let p = &self.fibre_gradients[alpha];
+            let second: f64 = (0..3).map(|a| 2.0 * p[a] * p[a] / masses[a]).sum();
+            rest += s.stretch_forces[alpha].abs() * second;
+        }
+        // Gauss–Newton part: A0 λmax(D^½ G D^½), G = Yᵀ M⁻¹ Y with the
+        // columns Y_v = ∇κ_v.
+        let grad_kappa = self.curvature_gradients(&s, &grad_phi, &grad_stretch);
+        let g = M3::from_fn(|v, w| {
             let mut sum = 0.0;
             for slot in 0..6 {
                 if used[slot] {
-                    sum += grad_phi[i]
+                    sum += grad_kappa[v]
                         .fixed_rows::<3>(3 * slot)
-                        .dot(&grad_phi[j].fixed_rows::<3>(3 * slot))
+                        .dot(&grad_kappa[w].fixed_rows::<3>(3 * slot))
                         / masses[slot];
                 }
             }
             sum
         });
-        let c = M3::from_fn(|v, i| self.coefficients[i][v]);
         let d = stiffness.diagonal();
         let d_half = M3::from_diagonal(&V3::new(d[0].sqrt(), d[1].sqrt(), d[2].sqrt()));
-        let reduced = d_half * c * g * c.transpose() * d_half * self.area;
+        let reduced = d_half * g * d_half * self.area;
         let gauss_newton = largest_eigenvalue(&(0.5 * (reduced + reduced.transpose()))).max(0.0);
         Ok(gauss_newton + rest)
     }

@@ -8,11 +8,12 @@
 //!    [`BendingPass::ghost_normals`], the normals of the ghost triangles of
 //!    clamped edges).
 //! 2. [`BendingPass::moments`]: per element, the hinge measures from the
-//!    partners' normals, `ΔK`, `μ_i = ∂W/∂φ_i`, the per-edge moments
+//!    partners' normals, the fibre stretches `I4`, `I8` (from the squared
+//!    edge lengths), `Δκ`, `μ_i = ∂W/∂φ_i`, the per-edge moments
 //!    `P_{e,i} = l_i ∂W_e/∂θ_i = μ_i J m'(θ_i)` (`m' = cos(θ_i/2)`, or
-//!    `2 cos θ_i` on a clamped edge), and the forces of
-//!    everything the element's own energy gives its own nodes: the area-ratio
-//!    and edge-length terms and its own moments' hinge terms.
+//!    `2 cos θ_i` on a clamped edge), and the forces of everything the
+//!    element's own energy gives its own nodes: the area-ratio, edge-length
+//!    and fibre-stretch terms and its own moments' hinge terms.
 //! 3. [`BendingPass::hinge_forces`]: per element, the partners' moments on
 //!    the shared edges, `P_{p,j}`, and their hinge terms on the own nodes
 //!    (and the ghost-triangle terms of clamped edges).
@@ -21,6 +22,12 @@
 //! `∂θ_i/∂x_k = (e_i·e_k)/(l_i |N|) n` on the own nodes (Eq. (9)), so the
 //! hinge force of edge `i` on own node `k` is
 //! `(P_{e,i} + P_{p,j}) (e_i·e_k)/(l_i² |N|) n`.
+//! The squared fibre stretches are linear in the squared edge lengths,
+//! `I4 = Σ_i w4_i l_i²` (the triangle's metric; likewise `I8`), so their
+//! force on own node `k`, `Σ_α (∂W/∂I_α) ∂I_α/∂x_k`, is
+//! `2 Σ_i ω_i s(i, k) e_i` with `ω_i = Σ_α (∂W/∂I_α) w_αi` and
+//! `s(i, k) = ±1` at the end nodes of edge `i` (`∂(l_i²)/∂x_k = 2 s(i, k) e_i`):
+//! an edge-length term on the own nodes only, added to those of phase 2.
 //!
 //! Elements are stored in batches of [`LANES`] (structure of arrays), so that
 //! on x86-64 with AVX2 each batch runs in SIMD registers (the
@@ -70,7 +77,12 @@ struct ElementBatch {
     clamped: [Lanes; 3],
     /// `c_i` (Voigt, 3 per edge).
     coefficients: [Lanes; 9],
-    /// `K0`.
+    /// The weights of the squared fibre stretches in the squared edge
+    /// lengths, `I4 = Σ_k w4_k l_k²`, `I8 = Σ_k w8_k l_k²`:
+    /// `w4_k = −p_{k+1} p_{k+2}` (`p_a = ∂N_a/∂a0`), `w8_k` likewise with
+    /// `∂N_a/∂b0` (docs/bending.md, "Explicit three-phase scheme").
+    stretch_weights: [Lanes; 6],
+    /// `κ0`.
     reference_curvature: [Lanes; 3],
     /// `A0 · (B11, B22, B66)` [N·mm³].
     moduli: [Lanes; 3],
@@ -249,6 +261,7 @@ impl BendingPass {
                 active: [[0.0; LANES]; 3],
                 clamped: [[0.0; LANES]; 3],
                 coefficients: [[0.0; LANES]; 9],
+                stretch_weights: [[0.0; LANES]; 6],
                 reference_curvature: [[0.0; LANES]; 3],
                 moduli: [[0.0; LANES]; 3],
                 inv_double_area: [0.0; LANES],
@@ -284,6 +297,9 @@ impl BendingPass {
                     }
                     for v in 0..3 {
                         batch.coefficients[3 * i + v][l] = element.coefficients[i][v];
+                    }
+                    for (alpha, p) in element.fibre_gradients.iter().enumerate() {
+                        batch.stretch_weights[3 * alpha + i][l] = -p[(i + 1) % 3] * p[(i + 2) % 3];
                     }
                 }
                 for v in 0..3 {
@@ -791,21 +807,41 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         slope[i] = y * 0.5 * not_clamped + cos * 2.0 * clamped;
         phi[i] = length_sin * 2.0 * area_ratio * inv_length2[i] / y * active;
     }
-    // ΔK, moment m = A0 D ΔK, μ_i = c_i·m.
+    // Fibre stretches from the squared edge lengths (the metric of the
+    // triangle): I4 = Σ_k w4_k l_k², I8 = Σ_k w8_k l_k²; the factors
+    // s = [1/I4, 1/I8, 1/√(I4 I8)] with one division and one square root.
+    let weight = |a: usize, k: usize| ld(ctx, &batch.stretch_weights[3 * a + k], off);
+    let i4 = weight(0, 0) * length2[0] + weight(0, 1) * length2[1] + weight(0, 2) * length2[2];
+    let i8 = weight(1, 0) * length2[0] + weight(1, 1) * length2[1] + weight(1, 2) * length2[2];
+    let inv_product = one / (i4 * i8);
+    let scales = [i8 * inv_product, i4 * inv_product, inv_product.sqrt()];
+    // κ = s K, moment M = A0 D Δκ, μ_i = Σ_v c_iv s_v M_v.
+    let mut kappa = [ctx; 3];
     let mut moment = [ctx; 3];
+    let mut scaled_moment = [ctx; 3];
     for v in 0..3 {
-        let mut k = -ld(ctx, &batch.reference_curvature[v], off);
-        for (i, phi) in phi.iter().enumerate() {
-            k = k + *phi * ld(ctx, &batch.coefficients[3 * i + v], off);
+        let mut k = phi[0] * ld(ctx, &batch.coefficients[v], off);
+        for i in 1..3 {
+            k = k + phi[i] * ld(ctx, &batch.coefficients[3 * i + v], off);
         }
-        moment[v] = k * ld(ctx, &batch.moduli[v], off);
+        kappa[v] = k * scales[v];
+        moment[v] = (kappa[v] - ld(ctx, &batch.reference_curvature[v], off))
+            * ld(ctx, &batch.moduli[v], off);
+        scaled_moment[v] = moment[v] * scales[v];
     }
     let mut mu = [ctx; 3];
     for (i, mu) in mu.iter_mut().enumerate() {
-        *mu = ld(ctx, &batch.coefficients[3 * i], off) * moment[0]
-            + ld(ctx, &batch.coefficients[3 * i + 1], off) * moment[1]
-            + ld(ctx, &batch.coefficients[3 * i + 2], off) * moment[2];
+        *mu = ld(ctx, &batch.coefficients[3 * i], off) * scaled_moment[0]
+            + ld(ctx, &batch.coefficients[3 * i + 1], off) * scaled_moment[1]
+            + ld(ctx, &batch.coefficients[3 * i + 2], off) * scaled_moment[2];
     }
+    // −2 ∂W/∂I4 = 2 s1 (M1 κ1 + ½ M3 κ3), likewise for I8 (Eq. (8)); the
+    // stretch force on own node k, Σ_α (∂W/∂I_α) Σ_i w_αi ∂(l_i²)/∂x_k,
+    // has the form of the edge-length terms below: it joins τ_i as
+    // −2 ω_i = −2 Σ_α (∂W/∂I_α) w_αi.
+    let half_twist = moment[2] * kappa[2] * 0.5;
+    let stretch_force4 = (moment[0] * kappa[0] + half_twist) * scales[0] * 2.0;
+    let stretch_force8 = (moment[1] * kappa[1] + half_twist) * scales[1] * 2.0;
     // Per-edge moments P_i = μ_i J m'(θ_i) and π_i = P_i / l_i².
     let mut pi = [ctx; 3];
     let mut sigma = ctx.splat(0.0);
@@ -817,7 +853,8 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         pi[i] = p * inv_length2[i];
         let mu_phi = mu[i] * phi[i];
         sigma = sigma + mu_phi;
-        tau[i] = mu_phi * inv_length2[i];
+        tau[i] =
+            mu_phi * inv_length2[i] + stretch_force4 * weight(0, i) + stretch_force8 * weight(1, i);
     }
     sigma = sigma * inv_norm;
     // Gram matrix off-diagonals from the squared lengths.

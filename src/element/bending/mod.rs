@@ -5,10 +5,14 @@
 //! neighbours (a 6-node stencil). The curvature is the pull-back to the
 //! reference fibre basis of a discrete shape operator built from hinge
 //! measures `θ̂ = 2 sin(θ/2)` of the three edge dihedral angles (`2 sin θ`,
-//! the measure of the mirror angle `2θ`, on clamped edges), so the
-//! orthotropic bending law `W = A0 ½ ΔKᵀ D ΔK` follows the rovings and the
-//! stitching as the ply shears. See `docs/bending.md` for the formulation,
-//! its derivation, the sign conventions and the limits.
+//! the measure of the mirror angle `2θ`, on clamped edges), divided by the
+//! fibre stretches so that it measures the curvature `κ` along the current
+//! *unit* rovings and stitching directions (the non-orthogonal material
+//! frame of the sheared ply). The orthotropic bending law
+//! `W = A0 ½ Δκᵀ D Δκ` thus follows the rovings and the stitching as the
+//! ply shears, and an in-plane stretch or compression does not change the
+//! bending energy of a given shape. See `docs/bending.md` for the
+//! formulation, its derivation, the sign conventions and the limits.
 //!
 //! - [`topology`]: edge partners of a triangle mesh and hinge kinds;
 //! - [`element`]: [`BendingElement`] (reference data) and the reference
@@ -78,15 +82,15 @@ pub enum HingeKind {
 }
 
 /// Bending stiffnesses `D = diag(B11, B22, B66)` [N·mm] acting on the
-/// curvature change `[ΔK11, ΔK22, 2ΔK12]` in the fibre basis
-/// (docs/bending.md, "Energy and defaults").
+/// curvature change `[Δκ11, Δκ22, 2Δκ12]` on the current unit material
+/// directions (docs/bending.md, "Energy and defaults").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendingStiffness {
-    /// `B11` [N·mm]: bending along the rovings (curvature `K11`).
+    /// `B11` [N·mm]: bending along the rovings (curvature `κ11`).
     pub b11: f64,
-    /// `B22` [N·mm]: bending across the rovings (curvature `K22`).
+    /// `B22` [N·mm]: bending across the rovings (curvature `κ22`).
     pub b22: f64,
-    /// `B66` [N·mm]: twist (acting on `2K12`).
+    /// `B66` [N·mm]: twist (acting on `2κ12`).
     pub b66: f64,
 }
 
