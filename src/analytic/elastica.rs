@@ -3,7 +3,7 @@
 //! by shooting from the free end. See `docs/references.md` §1.
 //!
 //! A strip of bending stiffness `B` [N·mm, per mm of width], areal weight
-//! `q` [N/mm², i.e. N per mm of length per mm of width] and length `L` [mm]
+//! `q` [N/mm², i.e. N per mm of length per mm of width] and length `L` \[mm\]
 //! is clamped at `s = 0` with the slope `θ0` below the horizontal and free at
 //! `s = L`; gravity acts along −z. With `θ(s)` the slope angle *below* the
 //! horizontal, the strip runs along `x' = cos θ`, `z' = −sin θ` and the
@@ -85,9 +85,9 @@ pub enum ElasticaError {
         "heavy cantilever: the tip-angle bracket [{lower}, {upper}] rad does not enclose the solution: its lower end shoots {lower_side} the clamp angle and its upper end {upper_side}; expected below and above (a bracket inside [θ0, π/2] around the tip angle)"
     )]
     NoSignChange {
-        /// Lower end of the bracket [rad].
+        /// Lower end of the bracket \[rad\].
         lower: f64,
-        /// Upper end of the bracket [rad].
+        /// Upper end of the bracket \[rad\].
         upper: f64,
         /// Where the shot from `lower` lands: `below` or `above`.
         lower_side: &'static str,
@@ -115,23 +115,23 @@ pub struct HeavyCantilever {
     pub bending_stiffness: f64,
     /// Areal weight `q` [N/mm²] (areal mass × g).
     pub areal_weight: f64,
-    /// Overhang length `L` [mm].
+    /// Overhang length `L` \[mm\].
     pub length: f64,
-    /// Clamp slope `θ0` below the horizontal [rad], in `[0, π/2)`.
+    /// Clamp slope `θ0` below the horizontal \[rad\], in `[0, π/2)`.
     pub clamp_angle: f64,
 }
 
 /// The solution of [`HeavyCantilever::solve`] (lengths in mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CantileverSolution {
-    /// Tip deflection `δ` below the clamp, positive down [mm].
+    /// Tip deflection `δ` below the clamp, positive down \[mm\].
     pub tip_deflection: f64,
-    /// Horizontal distance of the tip from the clamp, `x(L) − x(0)` [mm].
+    /// Horizontal distance of the tip from the clamp, `x(L) − x(0)` \[mm\].
     pub tip_x: f64,
-    /// Slope at the tip `θ(L)` below the horizontal [rad].
+    /// Slope at the tip `θ(L)` below the horizontal \[rad\].
     pub tip_angle: f64,
     /// The same as the angle from the downward vertical, `π/2 − θ(L)`
-    /// [rad], with full relative precision when the tip hangs nearly
+    /// \[rad\], with full relative precision when the tip hangs nearly
     /// vertical (the shooting parameter).
     pub tip_angle_from_vertical: f64,
     /// Clamp moment `M(0) = B θ'(0)` per unit width [N·mm/mm].
@@ -147,13 +147,13 @@ pub struct CantileverSolution {
 /// A point of the deflected strip (relative to the clamp, z up) [mm, rad].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShapePoint {
-    /// Arc length from the clamp [mm].
+    /// Arc length from the clamp \[mm\].
     pub arc_length: f64,
-    /// Horizontal position `x(s) − x(0)` [mm].
+    /// Horizontal position `x(s) − x(0)` \[mm\].
     pub x: f64,
-    /// Vertical position `z(s) − z(0)` [mm] (negative: below the clamp).
+    /// Vertical position `z(s) − z(0)` \[mm\] (negative: below the clamp).
     pub z: f64,
-    /// Slope `θ(s)` below the horizontal [rad].
+    /// Slope `θ(s)` below the horizontal \[rad\].
     pub angle: f64,
 }
 
@@ -226,7 +226,7 @@ impl HeavyCantilever {
         Ok(cantilever)
     }
 
-    /// Peirce's bending length `c = (B/q)^(1/3)` [mm].
+    /// Peirce's bending length `c = (B/q)^(1/3)` \[mm\].
     pub fn bending_length(&self) -> f64 {
         (self.bending_stiffness / self.areal_weight).cbrt()
     }
@@ -237,7 +237,7 @@ impl HeavyCantilever {
     }
 
     /// Small-deflection (Euler–Bernoulli) tip deflection of a horizontally
-    /// clamped strip, `q L⁴ / (8 B)` [mm]. The exact `δ` of `θ0 = 0` is
+    /// clamped strip, `q L⁴ / (8 B)` \[mm\]. The exact `δ` of `θ0 = 0` is
     /// `(q L⁴/8B) (1 − λ²/80 + 549 λ⁴/1971200 − …)`, see
     /// `docs/references.md` §1.
     pub fn small_deflection_tip(&self) -> f64 {

@@ -18,11 +18,11 @@ use crate::material::GeneralizedTerm;
 /// Geometry of the 45° specimen and the membrane thickness.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NetSpecimen {
-    /// Width `W` [mm].
+    /// Width `W` \[mm\].
     pub width: f64,
-    /// Free length `L` [mm], `L > 1.5 W` for the three zones to exist.
+    /// Free length `L` \[mm\], `L > 1.5 W` for the three zones to exist.
     pub length: f64,
-    /// Thickness `t` [mm].
+    /// Thickness `t` \[mm\].
     pub thickness: f64,
 }
 
@@ -32,19 +32,19 @@ impl NetSpecimen {
         self.length - self.width
     }
 
-    /// The displacement at which the net locks, `(√2 − 1) D` [mm].
+    /// The displacement at which the net locks, `(√2 − 1) D` \[mm\].
     pub fn locking_displacement(&self) -> f64 {
         (std::f64::consts::SQRT_2 - 1.0) * self.free_diagonal()
     }
 
-    /// Shear angle of zone A, `γ_A(d)` [rad].
+    /// Shear angle of zone A, `γ_A(d)` \[rad\].
     pub fn shear_angle_a(&self, d: f64) -> f64 {
         let dd = self.free_diagonal();
         let u = (dd + d) / (std::f64::consts::SQRT_2 * dd);
         std::f64::consts::FRAC_PI_2 - 2.0 * u.clamp(-1.0, 1.0).acos()
     }
 
-    /// Clamp force `F(d)` [N] for the shear law `w6` (its stress function
+    /// Clamp force `F(d)` \[N\] for the shear law `w6` (its stress function
     /// `f6` in MPa), for `0 ≤ d < locking_displacement()`.
     pub fn force(&self, d: f64, w6: &GeneralizedTerm) -> f64 {
         let dd = self.free_diagonal();

@@ -81,7 +81,7 @@ pub(super) struct ExplicitRaw {
 /// Validated explicit settings of a case.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExplicitSettings {
-    /// Duration of the stroke [s] (`displacement / clamp_speed`).
+    /// Duration of the stroke \[s\] (`displacement / clamp_speed`).
     pub duration: f64,
     /// Mean clamp speed [mm/s].
     pub clamp_speed: f64,
@@ -89,13 +89,13 @@ pub struct ExplicitSettings {
     pub amplitude: Amplitude,
     /// Time-step control.
     pub time_step: TimeStepControl,
-    /// Mass-scaling target step [s].
+    /// Mass-scaling target step \[s\].
     pub mass_scaling_time_step: Option<f64>,
     /// Mass-proportional damping `α` [1/s].
     pub damping: f64,
     /// KE/IE warning level.
     pub kinetic_energy_warning: f64,
-    /// Clamp displacement between history rows [mm].
+    /// Clamp displacement between history rows \[mm\].
     pub history_interval: f64,
     /// Worker threads (0: all).
     pub threads: usize,

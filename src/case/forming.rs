@@ -4,7 +4,7 @@
 //! prescribed or floating, each with its friction), boundary conditions on
 //! node sets, gravity and dead loads, the load programme, the solver and
 //! the outputs. Only this layer knows what a ply or a punch is; it builds a
-//! [`Model`] of force terms and the Dirichlet conditions the solvers drive.
+//! [`Model`](crate::model::Model) of force terms and the Dirichlet conditions the solvers drive.
 //! Key-by-key documentation: `docs/cases.md`, "Forming cases".
 //!
 //! The load parameter of a forming case is the programme fraction
@@ -186,35 +186,35 @@ pub enum PlyMesh {
     /// A flat rectangle `size` in x and y centred at `centre`, meshed so
     /// that every triangle has an edge along the rovings.
     Rectangle {
-        /// Extents along x and y [mm].
+        /// Extents along x and y \[mm\].
         size: [f64; 2],
-        /// Centre [mm].
+        /// Centre \[mm\].
         centre: Vector3<f64>,
         /// Element size or cell counts.
         resolution: crate::mesh::generate::GridResolution,
     },
     /// A flat circular membrane of radius `radius` centred at `centre`.
     Disk {
-        /// Radius [mm].
+        /// Radius \[mm\].
         radius: f64,
-        /// Centre [mm].
+        /// Centre \[mm\].
         centre: Vector3<f64>,
-        /// Element size [mm].
+        /// Element size \[mm\].
         element_size: f64,
     },
     /// A strip pre-wrapped over a cylinder along y through `centre`.
     WrappedStrip {
-        /// Radius of the strip's mid-surface arc [mm].
+        /// Radius of the strip's mid-surface arc \[mm\].
         radius: f64,
-        /// Wrap angle [deg].
+        /// Wrap angle \[deg\].
         wrap_angle_deg: f64,
-        /// Length of each straight tail [mm].
+        /// Length of each straight tail \[mm\].
         tail_length: f64,
-        /// Width of the strip [mm].
+        /// Width of the strip \[mm\].
         width: f64,
-        /// Element size [mm].
+        /// Element size \[mm\].
         element_size: f64,
-        /// Centre of the cylinder's axis [mm].
+        /// Centre of the cylinder's axis \[mm\].
         centre: Vector3<f64>,
     },
     /// An Abaqus `.inp` or Gmsh `.msh` file.
@@ -233,12 +233,12 @@ pub struct PlySpec {
     pub mesh: PlyMesh,
     /// The law.
     pub material: MaterialSpec,
-    /// Thickness [mm].
+    /// Thickness \[mm\].
     pub thickness: f64,
     /// Mass density [t/mm³] (`None`: a parameter file without areal mass,
     /// quasi-static without gravity only).
     pub density: Option<f64>,
-    /// Roving angle from the global x axis in the blank's plane [deg]
+    /// Roving angle from the global x axis in the blank's plane \[deg\]
     /// (rovings `(cos α, sin α, 0)`), for generated rectangles and mesh
     /// files; a wrapped strip has its rovings along its length.
     pub fibre_angle_deg: f64,
@@ -254,27 +254,27 @@ pub enum ToolShape {
     Plane,
     /// A sphere of radius `radius` about the origin.
     Sphere {
-        /// Radius [mm].
+        /// Radius \[mm\].
         radius: f64,
     },
     /// An infinite cylinder of radius `radius` about the axis.
     Cylinder {
-        /// Radius [mm].
+        /// Radius \[mm\].
         radius: f64,
     },
     /// A torus about the axis.
     Torus {
-        /// Radius of the centre circle [mm].
+        /// Radius of the centre circle \[mm\].
         major_radius: f64,
-        /// Radius of the tube [mm].
+        /// Radius of the tube \[mm\].
         minor_radius: f64,
     },
     /// A plate whose face (normal = axis, towards the ply) has a round
     /// opening with a fillet (a die or a blankholder).
     PlateWithHole {
-        /// Opening radius [mm].
+        /// Opening radius \[mm\].
         opening_radius: f64,
-        /// Fillet radius [mm].
+        /// Fillet radius \[mm\].
         fillet_radius: f64,
     },
     /// A triangle mesh from an STL or OBJ file.
@@ -293,12 +293,12 @@ pub enum ToolShape {
 pub enum ToolMotion {
     /// It does not move.
     Fixed,
-    /// It translates by `displacement` [mm] along `direction` over the
+    /// It translates by `displacement` \[mm\] along `direction` over the
     /// programme.
     Prescribed {
         /// Unit direction.
         direction: Vector3<f64>,
-        /// Displacement at `λ = 1` [mm].
+        /// Displacement at `λ = 1` \[mm\].
         displacement: f64,
     },
     /// It translates freely along `direction` with its mass under its
@@ -306,9 +306,9 @@ pub enum ToolMotion {
     Floating {
         /// Unit direction.
         direction: Vector3<f64>,
-        /// Mass [t].
+        /// Mass \[t\].
         mass: f64,
-        /// Dead force along `direction` [N] (its weight's component).
+        /// Dead force along `direction` \[N\] (its weight's component).
         weight: f64,
     },
 }
@@ -320,7 +320,7 @@ pub struct ToolSpec {
     pub name: String,
     /// Surface.
     pub shape: ToolShape,
-    /// The surface's local origin [mm].
+    /// The surface's local origin \[mm\].
     pub origin: Vector3<f64>,
     /// The surface's local z axis (unit).
     pub axis: Vector3<f64>,
@@ -330,7 +330,7 @@ pub struct ToolSpec {
     pub friction: f64,
     /// Motion.
     pub motion: ToolMotion,
-    /// Half-size of the drawn surface (planes, plates) [mm].
+    /// Half-size of the drawn surface (planes, plates) \[mm\].
     pub extent: f64,
 }
 
@@ -343,7 +343,7 @@ pub struct BoundarySpec {
     pub nodes: String,
     /// Fixed components (x, y, z); a driven component is fixed too.
     pub fixed: [bool; 3],
-    /// Displacement at `λ = 1` of the fixed components [mm].
+    /// Displacement at `λ = 1` of the fixed components \[mm\].
     pub displacement: [f64; 3],
     /// Fix the rotation of bending about edges on this set (a clamp).
     pub clamp_rotation: bool,
@@ -358,7 +358,7 @@ pub struct LoadSpec {
     pub ply: usize,
     /// Node set.
     pub nodes: String,
-    /// Total force [N], shared equally by the set's nodes.
+    /// Total force \[N\], shared equally by the set's nodes.
     pub force: Vector3<f64>,
     /// Amplitude.
     pub amplitude: LoadAmplitude,
@@ -389,7 +389,7 @@ pub struct GravitySpec {
 /// Contact settings shared by every tool.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ContactSettings {
-    /// Distance of the contact surface from the ply's mid-surface [mm];
+    /// Distance of the contact surface from the ply's mid-surface \[mm\];
     /// `None`: half of each ply's thickness.
     pub offset: Option<f64>,
     /// Normal and tangential penalty of the augmented Lagrangian [N/mm];
@@ -397,7 +397,7 @@ pub struct ContactSettings {
     pub penalty: Option<f64>,
     /// Factor on the automatic penalty.
     pub penalty_scale: f64,
-    /// Largest accepted penetration [mm]; `None`: 1 % of the offset.
+    /// Largest accepted penetration \[mm\]; `None`: 1 % of the offset.
     pub gap_tolerance: Option<f64>,
     /// Largest accepted relative change of the multipliers per
     /// augmentation.
@@ -455,7 +455,7 @@ pub struct FormingCase {
     pub states: Vec<f64>,
     /// History rows of an explicit run.
     pub history_rows: usize,
-    /// Largest prescribed displacement [mm] (the stroke), if anything moves.
+    /// Largest prescribed displacement \[mm\] (the stroke), if anything moves.
     pub stroke: Option<f64>,
 }
 

@@ -34,9 +34,9 @@ pub struct BuiltPly {
     pub node_offset: usize,
     /// The ply's membrane (model node numbering), for result fields.
     pub membrane: MembraneModel,
-    /// Lumped reference area of each of the ply's nodes `Σ A0/3` [mm²].
+    /// Lumped reference area of each of the ply's nodes `Σ A0/3` \[mm²\].
     pub nodal_area: Vec<f64>,
-    /// Thickness [mm].
+    /// Thickness \[mm\].
     pub thickness: f64,
 }
 
@@ -169,7 +169,7 @@ pub struct FormingModel {
     pub plies: Vec<BuiltPly>,
     /// The tools.
     pub tools: Vec<BuiltTool>,
-    /// Reference positions of every node [mm].
+    /// Reference positions of every node \[mm\].
     pub nodes: Vec<Vector3<f64>>,
     /// Per boundary condition of the case: its model nodes.
     pub boundary_nodes: Vec<Vec<usize>>,

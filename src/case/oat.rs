@@ -20,9 +20,9 @@ use crate::mesh::generate::{GridPattern, GridResolution, OatSpecimen, oat_specim
 use crate::model::{MembraneModel, MembraneOptions, Model};
 use crate::solver::{Dirichlet, DofMap, NewtonParameters};
 
-/// Default side of the square main-deformation-zone window [mm].
+/// Default side of the square main-deformation-zone window \[mm\].
 pub const DEFAULT_MDZ_SIZE: f64 = 20.0;
-/// Default membrane thickness [mm] (not in the paper; `docs/parameters.md`).
+/// Default membrane thickness \[mm\] (not in the paper; `docs/parameters.md`).
 pub const DEFAULT_THICKNESS: f64 = 0.3;
 
 #[derive(Deserialize)]
@@ -109,25 +109,25 @@ pub struct OatCase {
     pub title: String,
     /// The case file (or "embedded").
     pub source: String,
-    /// Specimen width `W` [mm] (x).
+    /// Specimen width `W` \[mm\] (x).
     pub width: f64,
-    /// Free length `L` between the clamps [mm] (y).
+    /// Free length `L` between the clamps \[mm\] (y).
     pub length: f64,
-    /// Bias angle θ between rovings and load axis [deg].
+    /// Bias angle θ between rovings and load axis \[deg\].
     pub bias_angle_deg: f64,
     /// The mesh.
     pub mesh: MeshSource,
     /// The material law.
     pub material: MaterialSpec,
-    /// Membrane thickness [mm].
+    /// Membrane thickness \[mm\].
     pub thickness: f64,
-    /// Final clamp displacement [mm].
+    /// Final clamp displacement \[mm\].
     pub displacement: f64,
-    /// Clamp displacements with VTU output [mm] (the final one is added).
+    /// Clamp displacements with VTU output \[mm\] (the final one is added).
     pub output_displacements: Vec<f64>,
-    /// Side of the MDZ window [mm].
+    /// Side of the MDZ window \[mm\].
     pub mdz_size: f64,
-    /// Displacement of the contour-map pictures [mm].
+    /// Displacement of the contour-map pictures \[mm\].
     pub contour_displacement: f64,
     /// Which solver runs the case.
     pub solver_kind: SolverKind,
@@ -173,14 +173,14 @@ pub struct OatModel {
     /// The membrane model.
     pub model: MembraneModel,
     /// Clamps and the in-plane condition; the load parameter is the clamp
-    /// displacement [mm].
+    /// displacement \[mm\].
     pub dirichlet: Vec<Dirichlet>,
     /// Zone of every element.
     pub zones: Vec<Zone>,
     /// Elements of the main deformation zone.
     pub mdz: Vec<usize>,
     /// Largest angle between the rovings and the nearest edge of a triangle
-    /// [deg] (generated meshes only).
+    /// \[deg\] (generated meshes only).
     pub edge_deviation_deg: Option<f64>,
 }
 

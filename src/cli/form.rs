@@ -40,10 +40,10 @@ const UNITS: &str = "mm, N, MPa, tonne/mm^3, s; angles in degrees";
 /// One tool's state in a history row.
 #[derive(Debug, Clone, Serialize)]
 pub struct ToolRow {
-    /// Displacement along its direction [mm].
+    /// Displacement along its direction \[mm\].
     pub displacement: f64,
     /// Force of the plies on it along its direction, the force that
-    /// drives or holds it (positive when the plies resist its motion) [N].
+    /// drives or holds it (positive when the plies resist its motion) \[N\].
     pub force: f64,
 }
 
@@ -52,14 +52,14 @@ pub struct ToolRow {
 pub struct FormingRow {
     /// Programme fraction `λ`.
     pub load: f64,
-    /// Time [s] (explicit).
+    /// Time \[s\] (explicit).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,
     /// Per tool.
     pub tools: Vec<ToolRow>,
-    /// Per boundary condition: the total reaction force [N].
+    /// Per boundary condition: the total reaction force \[N\].
     pub reactions: Vec<[f64; 3]>,
-    /// Per probe: the mean displacement of its nodes [mm].
+    /// Per probe: the mean displacement of its nodes \[mm\].
     pub probes: Vec<[f64; 3]>,
     /// Newton iterations of the step (quasi-static).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -67,7 +67,7 @@ pub struct FormingRow {
     /// Newton solves beyond the first (contact augmentations).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub augmentations: Option<usize>,
-    /// Largest penetration after the step's last augmentation [mm].
+    /// Largest penetration after the step's last augmentation \[mm\].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_penetration: Option<f64>,
     /// Relative change of the contact multipliers in the last augmentation.
@@ -76,7 +76,7 @@ pub struct FormingRow {
     /// Closed contacts (node–tool pairs), of which slipping.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contacts: Option<(usize, usize)>,
-    /// Final residual norm of the step [N] (quasi-static).
+    /// Final residual norm of the step \[N\] (quasi-static).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residual: Option<f64>,
     /// Time increments so far (explicit).
@@ -115,13 +115,13 @@ pub struct FormingSummary {
     pub augmentations: usize,
     /// The explicit run's figures.
     pub explicit: Option<ExplicitFigures>,
-    /// Time split of the solve [s].
+    /// Time split of the solve \[s\].
     pub timings: Timings,
-    /// Quasi-static: of the assembly time, each term's evaluation [s].
+    /// Quasi-static: of the assembly time, each term's evaluation \[s\].
     pub term_seconds: Vec<(String, f64)>,
-    /// Time writing outputs [s].
+    /// Time writing outputs \[s\].
     pub output_seconds: f64,
-    /// Wall time of the whole run [s].
+    /// Wall time of the whole run \[s\].
     pub wall_seconds: f64,
     /// The history.
     pub history: Vec<FormingRow>,
@@ -138,7 +138,7 @@ pub struct PlySummary {
     pub triangles: usize,
 }
 
-/// Either solver's time split [s].
+/// Either solver's time split \[s\].
 #[derive(Debug, Clone, Copy, Serialize)]
 #[serde(untagged)]
 pub enum Timings {
@@ -153,11 +153,11 @@ pub enum Timings {
 pub struct ExplicitFigures {
     /// Time increments.
     pub increments: usize,
-    /// Duration [s].
+    /// Duration \[s\].
     pub duration: f64,
-    /// Estimated critical step at the start [s].
+    /// Estimated critical step at the start \[s\].
     pub initial_critical_time_step: f64,
-    /// Smallest and largest step taken [s].
+    /// Smallest and largest step taken \[s\].
     pub time_step_range: (f64, f64),
     /// Masses.
     pub mass: MassSummary,

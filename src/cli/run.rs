@@ -34,26 +34,26 @@ use crate::solver::{
     solve_explicit,
 };
 
-/// Displacements whose forces the summary always reports [mm].
+/// Displacements whose forces the summary always reports \[mm\].
 pub const REPORTED_DISPLACEMENTS: [f64; 4] = [20.0, 40.0, 60.0, 80.0];
 
 /// One row of the history: a converged step with its MDZ averages.
 #[derive(Debug, Clone, Serialize)]
 pub struct HistoryRow {
-    /// Clamp displacement [mm].
+    /// Clamp displacement \[mm\].
     pub displacement: f64,
-    /// Clamp force [N].
+    /// Clamp force \[N\].
     pub force: f64,
     /// MDZ mean of E22.
     pub mdz_e22: f64,
-    /// MDZ mean of γ [deg].
+    /// MDZ mean of γ \[deg\].
     pub mdz_shear_angle_deg: f64,
     /// MDZ mean of E⊥.
     pub mdz_e_perp: f64,
     /// Newton iterations of the step (quasi-static).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
-    /// Time [s] (explicit).
+    /// Time \[s\] (explicit).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,
     /// Time increments so far (explicit).
@@ -88,19 +88,19 @@ pub struct RunSummary {
     pub newton_iterations: usize,
     /// Numeric factorisations (0 for explicit).
     pub factorisations: usize,
-    /// Time split of the solve [s].
+    /// Time split of the solve \[s\].
     pub timings: RunTimings,
     /// The explicit run's figures (`null` for quasi-static).
     pub explicit: Option<ExplicitSummary>,
-    /// Time writing outputs during and after the solve [s].
+    /// Time writing outputs during and after the solve \[s\].
     pub output_seconds: f64,
-    /// Wall time of the whole run [s].
+    /// Wall time of the whole run \[s\].
     pub wall_seconds: f64,
     /// The step history.
     pub history: Vec<HistoryRow>,
 }
 
-/// The time split of either solver [s].
+/// The time split of either solver \[s\].
 #[derive(Debug, Clone, Copy, Serialize)]
 #[serde(untagged)]
 pub enum RunTimings {
@@ -125,11 +125,11 @@ pub struct ExplicitSummary {
     pub element_cycles_per_second: f64,
     /// Worker threads.
     pub threads: usize,
-    /// Estimated critical step at the start, before the safety factor [s].
+    /// Estimated critical step at the start, before the safety factor \[s\].
     pub initial_critical_time_step: f64,
-    /// Smallest and largest step taken [s].
+    /// Smallest and largest step taken \[s\].
     pub time_step_range: (f64, f64),
-    /// Masses [t], with what mass scaling added.
+    /// Masses \[t\], with what mass scaling added.
     pub mass: MassSummary,
     /// Largest KE/IE from 10 % of the stroke on.
     pub max_kinetic_ratio: f64,
@@ -152,7 +152,7 @@ pub struct MeshSummary {
     pub unknowns: usize,
     /// Tangent non-zeros (0 for explicit: no matrix).
     pub nonzeros: usize,
-    /// Largest roving-to-edge angle [deg] (generated meshes).
+    /// Largest roving-to-edge angle \[deg\] (generated meshes).
     pub edge_deviation_deg: Option<f64>,
     /// Elements in the MDZ.
     pub mdz_elements: usize,
@@ -177,7 +177,7 @@ pub enum Progress {
 
 impl Progress {
     /// A bar when stderr is a terminal, quiet lines otherwise, for an OAT
-    /// of stroke `total` [mm].
+    /// of stroke `total` \[mm\].
     pub fn auto(total: f64) -> Self {
         Self::with_kind(total, false)
     }

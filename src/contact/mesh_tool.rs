@@ -153,13 +153,13 @@ pub enum MeshToolError {
         file: String,
         /// 1-based triangle number (file order; OBJ polygons triangulated).
         triangle: usize,
-        /// Its first vertex [mm].
+        /// Its first vertex \[mm\].
         a: [f64; 3],
-        /// Its second vertex [mm].
+        /// Its second vertex \[mm\].
         b: [f64; 3],
-        /// Its third vertex [mm].
+        /// Its third vertex \[mm\].
         c: [f64; 3],
-        /// Its area [mm²].
+        /// Its area \[mm²\].
         area: f64,
     },
     /// `require_closed` and an edge that is not shared by exactly two
@@ -168,9 +168,9 @@ pub enum MeshToolError {
     NotClosed {
         /// The path as given.
         file: String,
-        /// One end of the first offending edge [mm].
+        /// One end of the first offending edge \[mm\].
         a: [f64; 3],
-        /// The other end [mm].
+        /// The other end \[mm\].
         b: [f64; 3],
         /// What is wrong with it.
         defect: EdgeDefect,
@@ -182,7 +182,7 @@ pub enum MeshToolError {
     InsideOut {
         /// The path as given.
         file: String,
-        /// The signed enclosed volume [mm³].
+        /// The signed enclosed volume \[mm³\].
         volume: f64,
     },
     /// An option out of range.
@@ -477,7 +477,7 @@ impl MeshSurface {
     }
 
     /// The mesh's own triangles (duplicate positions merged), in its frame
-    /// [mm].
+    /// \[mm\].
     pub fn tessellation(&self) -> Tessellation {
         Tessellation {
             vertices: self.vertices.clone(),

@@ -29,7 +29,7 @@ use nalgebra::{Matrix3, Vector3};
 /// centre).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfacePoint {
-    /// Signed distance `d` [mm]: > 0 on the free side.
+    /// Signed distance `d` \[mm\]: > 0 on the free side.
     pub distance: f64,
     /// `∇d`: the unit outward normal of the surface at the closest point.
     pub normal: Vector3<f64>,
@@ -39,7 +39,7 @@ pub struct SurfacePoint {
 
 /// A rigid surface in its own frame.
 pub trait RigidSurface: Send + Sync {
-    /// The point `x` [mm] relative to the surface; `None` when `x` lies on
+    /// The point `x` \[mm\] relative to the surface; `None` when `x` lies on
     /// the free side farther than `max_distance` from the surface (the
     /// cheap cull of far nodes) or where the distance has no gradient (a
     /// sphere's centre, say). A point inside the tool is always answered.

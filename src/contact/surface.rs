@@ -118,7 +118,7 @@ impl Placement {
         }
     }
 
-    /// The world axes moved to `origin` [mm].
+    /// The world axes moved to `origin` \[mm\].
     ///
     /// # Errors
     /// A non-finite origin.
@@ -130,7 +130,7 @@ impl Placement {
         })
     }
 
-    /// The frame at `origin` [mm] whose local z is `axis` (normalised) and
+    /// The frame at `origin` \[mm\] whose local z is `axis` (normalised) and
     /// whose local x is `reference` projected on the plane normal to `axis`
     /// (normalised); local y = z × x. Without a reference, the world x axis
     /// is used, or the world y axis when `axis` is within ~26° of x
@@ -183,7 +183,7 @@ impl Placement {
         })
     }
 
-    /// The frame at `origin` [mm] rotated by `rotation`.
+    /// The frame at `origin` \[mm\] rotated by `rotation`.
     ///
     /// # Errors
     /// A non-finite origin or rotation.
@@ -206,7 +206,7 @@ impl Placement {
         })
     }
 
-    /// The same orientation at another origin [mm] (a tool moving without
+    /// The same orientation at another origin \[mm\] (a tool moving without
     /// turning).
     ///
     /// # Errors
@@ -219,7 +219,7 @@ impl Placement {
         })
     }
 
-    /// The local origin in world coordinates [mm].
+    /// The local origin in world coordinates \[mm\].
     pub fn origin(&self) -> Vector3<f64> {
         self.origin
     }
@@ -430,7 +430,7 @@ pub struct Sphere {
 }
 
 impl Sphere {
-    /// A sphere of `radius` [mm] with the ply on `side`.
+    /// A sphere of `radius` \[mm\] with the ply on `side`.
     ///
     /// # Errors
     /// A radius that is not positive and finite.
@@ -441,7 +441,7 @@ impl Sphere {
         })
     }
 
-    /// The radius `R` [mm].
+    /// The radius `R` \[mm\].
     pub fn radius(&self) -> f64 {
         self.radius
     }
@@ -484,7 +484,7 @@ pub struct Cylinder {
 }
 
 impl Cylinder {
-    /// A cylinder of `radius` [mm] with the ply on `side`.
+    /// A cylinder of `radius` \[mm\] with the ply on `side`.
     ///
     /// # Errors
     /// A radius that is not positive and finite.
@@ -495,7 +495,7 @@ impl Cylinder {
         })
     }
 
-    /// The radius `R` [mm].
+    /// The radius `R` \[mm\].
     pub fn radius(&self) -> f64 {
         self.radius
     }
@@ -542,7 +542,7 @@ pub struct Torus {
 }
 
 impl Torus {
-    /// A torus of `major_radius` `R` and `minor_radius` `r` [mm] with the
+    /// A torus of `major_radius` `R` and `minor_radius` `r` \[mm\] with the
     /// ply on `side`.
     ///
     /// # Errors
@@ -567,12 +567,12 @@ impl Torus {
         })
     }
 
-    /// The major radius `R` [mm] (the tube's centre circle).
+    /// The major radius `R` \[mm\] (the tube's centre circle).
     pub fn major_radius(&self) -> f64 {
         self.major_radius
     }
 
-    /// The minor radius `r` [mm] (the tube's radius).
+    /// The minor radius `r` \[mm\] (the tube's radius).
     pub fn minor_radius(&self) -> f64 {
         self.minor_radius
     }
@@ -634,8 +634,8 @@ pub struct PlateWithHole {
 }
 
 impl PlateWithHole {
-    /// A plate with an opening of `opening_radius` `R_o` [mm] whose edge is
-    /// rounded by `fillet_radius` `r_f` [mm] (`0` for a sharp edge, whose
+    /// A plate with an opening of `opening_radius` `R_o` \[mm\] whose edge is
+    /// rounded by `fillet_radius` `r_f` \[mm\] (`0` for a sharp edge, whose
     /// distance is then C¹ on the free side only).
     ///
     /// # Errors
@@ -657,12 +657,12 @@ impl PlateWithHole {
         })
     }
 
-    /// The opening radius `R_o` [mm].
+    /// The opening radius `R_o` \[mm\].
     pub fn opening_radius(&self) -> f64 {
         self.opening_radius
     }
 
-    /// The fillet radius `r_f` [mm].
+    /// The fillet radius `r_f` \[mm\].
     pub fn fillet_radius(&self) -> f64 {
         self.fillet_radius
     }

@@ -19,11 +19,11 @@ use super::surface::{
     Cylinder, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus, positive_finite,
 };
 
-/// A triangle mesh of a tool surface: vertex positions [mm] and
+/// A triangle mesh of a tool surface: vertex positions \[mm\] and
 /// counter-clockwise vertex triples (normal towards the free side).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Tessellation {
-    /// Vertex positions [mm].
+    /// Vertex positions \[mm\].
     pub vertices: Vec<Vector3<f64>>,
     /// Vertex indices of each triangle.
     pub triangles: Vec<[usize; 3]>,
@@ -124,7 +124,7 @@ fn revolve_profile(profile: &[Vector2<f64>], closed: bool, segments: usize) -> T
 }
 
 impl Plane {
-    /// The square `|x|, |y| ≤ half_size` [mm] of the plane, cut into
+    /// The square `|x|, |y| ≤ half_size` \[mm\] of the plane, cut into
     /// `divisions × divisions` cells of two triangles each, normal `+z`.
     ///
     /// # Errors
@@ -209,7 +209,7 @@ impl Sphere {
 }
 
 impl Cylinder {
-    /// The cylinder between `z_min` and `z_max` [mm], `segments` around,
+    /// The cylinder between `z_min` and `z_max` \[mm\], `segments` around,
     /// as many rows as keep the cells about square.
     ///
     /// # Errors
@@ -270,7 +270,7 @@ impl Torus {
 impl PlateWithHole {
     /// The working surface: the wall of the opening from
     /// `z = −r_f − wall_length` up to `z = −r_f`, the fillet, and the face
-    /// as an annulus out to `outer_radius` [mm]; `segments` around and
+    /// as an annulus out to `outer_radius` \[mm\]; `segments` around and
     /// `⌈segments/4⌉` pieces along the quarter-circle fillet (one point when
     /// `r_f = 0`).
     ///

@@ -81,7 +81,7 @@ impl pulp::WithSimd for Avx2Batches<'_> {
 impl FibreMesh {
     /// The fibre-basis form of the triangles `triangles` (node indices)
     /// set up by `references`, for a membrane of thickness `thickness`
-    /// [mm].
+    /// \[mm\].
     pub fn new(references: &[MembraneReference], triangles: &[[usize; 3]], thickness: f64) -> Self {
         let elements: Vec<FibreTriangle> = references
             .iter()
@@ -197,7 +197,7 @@ impl FibreMesh {
         self.forces_one_by_one(law, u, first, out, check_inversion)
     }
 
-    /// [`FibreMesh::chunk_forces`] one triangle at a time (any CPU).
+    /// `FibreMesh::chunk_forces` one triangle at a time (any CPU).
     pub fn forces_one_by_one(
         &self,
         law: &Material,

@@ -39,14 +39,14 @@ pub struct FibreTriangle {
     pub e2: [f64; 3],
     /// The unit reference normal `a0 × b0`.
     pub normal: [f64; 3],
-    /// `t A0` [mm³]: thickness times reference area.
+    /// `t A0` \[mm³\]: thickness times reference area.
     pub volume: f64,
 }
 
 /// Internal force of one triangle with its kinematic by-product.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FibreTriangleForce {
-    /// `f_a` node-major `[x0, y0, z0, x1, …]` [N].
+    /// `f_a` node-major `[x0, y0, z0, x1, …]` \[N\].
     pub force: [f64; 9],
     /// `(g1 × g2) · N0`: the area ratio, negative for a turned-over triangle.
     pub orientation: f64,
@@ -54,7 +54,7 @@ pub struct FibreTriangleForce {
 
 impl FibreTriangle {
     /// The fibre-basis form of a triangle set up by [`MembraneReference`],
-    /// for a membrane of thickness `thickness` [mm].
+    /// for a membrane of thickness `thickness` \[mm\].
     pub fn new(reference: &MembraneReference, thickness: f64) -> Self {
         let a0 = reference.frame.a0;
         let b0 = reference.frame.b0;
@@ -70,7 +70,7 @@ impl FibreTriangle {
         }
     }
 
-    /// `g1 = F a0`, `g2 = F b0` for the nodal displacements `u` [mm].
+    /// `g1 = F a0`, `g2 = F b0` for the nodal displacements `u` \[mm\].
     #[inline(always)]
     pub fn deformation(&self, u: &[[f64; 3]; 3]) -> ([f64; 3], [f64; 3]) {
         let mut g1 = self.e1;
@@ -91,7 +91,7 @@ impl FibreTriangle {
     }
 
     /// Internal force `f_a = t A0 (N_a,1 P1 + N_a,2 P2)` for the nodal
-    /// displacements `u` [mm] (see the module documentation).
+    /// displacements `u` \[mm\] (see the module documentation).
     ///
     /// # Errors
     /// When the law rejects the state.
@@ -283,7 +283,7 @@ pub struct FibreTriangles<const N: usize> {
     pub e2: [[f64; N]; 3],
     /// The unit reference normal `a0 × b0`.
     pub normal: [[f64; N]; 3],
-    /// `t A0` [mm³].
+    /// `t A0` \[mm³\].
     pub volume: [f64; N],
 }
 
@@ -291,7 +291,7 @@ pub struct FibreTriangles<const N: usize> {
 /// [`FibreTriangles::internal_forces`]).
 #[derive(Clone, Copy)]
 pub struct FibreTriangleForces<V: Real> {
-    /// `f_a` node-major `[x0, y0, z0, x1, …]`, each component per lane [N].
+    /// `f_a` node-major `[x0, y0, z0, x1, …]`, each component per lane \[N\].
     pub force: [V; 9],
     /// `(g1 × g2) · N0` per lane.
     pub orientation: V,

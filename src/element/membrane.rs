@@ -35,7 +35,7 @@ pub enum ReferenceError {
     /// Zero or negative reference area (collinear or repeated nodes).
     #[error("degenerate triangle: reference area {area:e} mm² is not positive")]
     Degenerate {
-        /// The reference area [mm²].
+        /// The reference area \[mm²\].
         area: f64,
     },
     /// The fibre direction has no component in the triangle's plane.
@@ -48,7 +48,7 @@ pub enum ReferenceError {
 pub struct MembraneReference {
     /// Shape-function gradients `∇N_a` in the reference basis [1/mm].
     pub grad: [Vector2<f64>; 3],
-    /// Reference area `A0` [mm²].
+    /// Reference area `A0` \[mm²\].
     pub area: f64,
     /// First in-plane reference basis vector (global coordinates).
     pub e1: Vector3<f64>,
@@ -61,7 +61,7 @@ pub struct MembraneReference {
 }
 
 impl MembraneReference {
-    /// Sets up a triangle from its reference node positions [mm] and a fibre
+    /// Sets up a triangle from its reference node positions \[mm\] and a fibre
     /// direction (global, projected on the triangle's plane).
     ///
     /// # Errors
@@ -105,7 +105,7 @@ impl MembraneReference {
     }
 
     /// `g1 = F E1`, `g2 = F E2` (the columns of `F`) for the nodal
-    /// displacements `u` [mm].
+    /// displacements `u` \[mm\].
     #[inline]
     pub fn deformation(&self, u: &[Vector3<f64>; 3]) -> [Vector3<f64>; 2] {
         let mut g1 = self.e1;
@@ -117,7 +117,7 @@ impl MembraneReference {
         [g1, g2]
     }
 
-    /// The kinematics for the nodal displacements `u` [mm].
+    /// The kinematics for the nodal displacements `u` \[mm\].
     #[inline]
     pub fn kinematics(&self, u: &[Vector3<f64>; 3]) -> MembraneKinematics {
         let [g1, g2] = self.deformation(u);
@@ -142,7 +142,7 @@ impl MembraneReference {
     }
 
     /// Energy, stress and internal force `f_a = t A0 B_aᵀ S` for the nodal
-    /// displacements `u` [mm].
+    /// displacements `u` \[mm\].
     ///
     /// # Errors
     /// When the law rejects the state (collapsed element, …).
@@ -166,7 +166,7 @@ impl MembraneReference {
 
     /// Energy, stress, internal force and consistent tangent
     /// `K_ab = t A0 (B_aᵀ ℂ B_b + (∇N_a · S ∇N_b) I3)` for the nodal
-    /// displacements `u` [mm].
+    /// displacements `u` \[mm\].
     ///
     /// # Errors
     /// When the law rejects the state.
@@ -236,7 +236,7 @@ pub struct MembraneTangent {
     pub kinematics: MembraneKinematics,
     /// Energy density and stress.
     pub state: StressState,
-    /// Internal force `f` [N], node-major.
+    /// Internal force `f` \[N\], node-major.
     pub force: ElementVector,
     /// Tangent `K = ∂f/∂x` [N/mm], node-major, symmetric.
     pub stiffness: ElementMatrix,

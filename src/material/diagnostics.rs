@@ -191,7 +191,7 @@ impl StateSampler {
         }
     }
 
-    /// The next state: `C` in the reference frame and the fibre angle [rad].
+    /// The next state: `C` in the reference frame and the fibre angle \[rad\].
     pub fn sample(&mut self) -> (Sym2, f64) {
         let r = self.ranges;
         loop {

@@ -25,18 +25,18 @@ use super::lanes::{ROUND_TO_INTEGER, Real};
 /// `C_ini` to the middle modulus `C_mid` over the stress range `ΔS_mid`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition {
-    /// Initial stress limit `S_ini` [MPa].
+    /// Initial stress limit `S_ini` \[MPa\].
     pub s_ini: f64,
-    /// Middle modulus `C_mid` [MPa].
+    /// Middle modulus `C_mid` \[MPa\].
     pub c_mid: f64,
-    /// Stress range `ΔS_mid` of the transition [MPa].
+    /// Stress range `ΔS_mid` of the transition \[MPa\].
     pub delta_s_mid: f64,
 }
 
 /// The lock branch of Eq. (12): `f += C_lock (x − I_lock)²` for `x ≥ I_lock`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Lock {
-    /// Lock modulus `C_lock` [MPa].
+    /// Lock modulus `C_lock` \[MPa\].
     pub c_lock: f64,
     /// Lock onset `I_lock` (same measure as `x`, dimensionless).
     pub i_lock: f64,
@@ -60,7 +60,7 @@ pub enum TermBranch {
 /// Construct with [`GeneralizedTerm::new`], which derives `x_t` and `c`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GeneralizedTerm {
-    /// Initial modulus `C_ini` [MPa].
+    /// Initial modulus `C_ini` \[MPa\].
     pub c_ini: f64,
     /// Optional transition (middle) branch.
     pub transition: Option<Transition>,
@@ -78,11 +78,11 @@ pub struct GeneralizedTerm {
 /// Value, slope and energy of a generalized term at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TermValue {
-    /// Energy `G(x)` [MPa].
+    /// Energy `G(x)` \[MPa\].
     pub energy: f64,
-    /// Stress function `f(x) = G′(x)` [MPa].
+    /// Stress function `f(x) = G′(x)` \[MPa\].
     pub stress: f64,
-    /// Modulus `f′(x)` [MPa].
+    /// Modulus `f′(x)` \[MPa\].
     pub modulus: f64,
 }
 
@@ -323,7 +323,7 @@ const EXPM1_TAYLOR: [f64; 12] = [
     1.0 / 6_227_020_800.0,
 ];
 
-/// [`decay_pair`] on lanes, branch-free: `(e^(−z), 1 − e^(−z))` for
+/// `decay_pair` on lanes, branch-free: `(e^(−z), 1 − e^(−z))` for
 /// `z ≥ 0`, each within an ulp or so of the C library's (NaN stays NaN).
 ///
 /// With `k = round(−z / ln 2)`, `r = −z − k ln 2` (`|r| ≤ ln 2 / 2`, the
@@ -335,7 +335,7 @@ const EXPM1_TAYLOR: [f64; 12] = [
 /// e^(−z) = s + s p,      1 − e^(−z) = (1 − s) − s p
 /// ```
 ///
-/// For `z ≤ ln 2` (where [`decay_pair`] uses `expm1`), `k ∈ {0, −1}`, so
+/// For `z ≤ ln 2` (where `decay_pair` uses `expm1`), `k ∈ {0, −1}`, so
 /// `1 − s` is exact and the second form has no cancellation; for larger `z`
 /// it is `1 − e^(−z) ≥ ½` to round-off. Beyond `z = 708`, `e^(−z)` is 0.
 #[inline(always)]

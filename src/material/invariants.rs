@@ -120,7 +120,7 @@ impl Invariants {
         self.i4 * self.i11 * self.i11
     }
 
-    /// `I10 = π/2 − arccos(I6 / sqrt(I4 I8))`: the shear angle γ12 [rad]
+    /// `I10 = π/2 − arccos(I6 / sqrt(I4 I8))`: the shear angle γ12 \[rad\]
     /// (Eq. 6; output only).
     pub fn i10(&self) -> f64 {
         let cosine = (self.i6 / (self.i4 * self.i8).sqrt()).clamp(-1.0, 1.0);

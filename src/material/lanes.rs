@@ -172,7 +172,7 @@ impl Real for f64 {
 
 /// Lanes in AVX2 registers, through `pulp`'s x86-64-v3 token (which proves
 /// at run time that the CPU has the instructions, so none of this needs
-/// `unsafe`): [`F64x4`], one register, and [`F64x8`], two registers
+/// `unsafe`): `F64x4`, one register, and `F64x8`, two registers
 /// side by side (twice the independent work between the long chains of the
 /// exponentials and divisions, measured 8 % faster on the force pass).
 #[cfg(target_arch = "x86_64")]

@@ -21,14 +21,14 @@ pub type Tangent = Matrix3<f64>;
 pub struct StressState {
     /// Strain energy density `W` [MPa = N·mm/mm³].
     pub energy: f64,
-    /// `S = 2 ∂W/∂C` [MPa] in [`Sym2`] storage.
+    /// `S = 2 ∂W/∂C` \[MPa\] in [`Sym2`] storage.
     pub stress: Sym2,
 }
 
 /// A hyperelastic membrane law: energy, stress and consistent tangent at a
 /// given `C` and fibre frame. The law knows nothing of elements or meshes.
 pub trait MembraneMaterial: Send + Sync {
-    /// `W(C)` [MPa].
+    /// `W(C)` \[MPa\].
     ///
     /// # Errors
     /// Degenerate states (non-finite `C`, `det C ≤ 0`, collapsed rovings).

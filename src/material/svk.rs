@@ -15,18 +15,18 @@ use super::law::{
 /// Orthotropic plane-stress St Venant–Kirchhoff law.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OrthotropicSvk {
-    /// Young's modulus along the rovings `E1` [MPa].
+    /// Young's modulus along the rovings `E1` \[MPa\].
     pub e1: f64,
-    /// Young's modulus along the stitching `E2` [MPa].
+    /// Young's modulus along the stitching `E2` \[MPa\].
     pub e2: f64,
     /// Major Poisson ratio `ν12` (`ν21 = ν12 E2/E1`).
     pub nu12: f64,
-    /// In-plane shear modulus `G12` [MPa].
+    /// In-plane shear modulus `G12` \[MPa\].
     pub g12: f64,
 }
 
 impl OrthotropicSvk {
-    /// The plane-stress stiffness `(Q11, Q22, Q12, Q66)` [MPa]:
+    /// The plane-stress stiffness `(Q11, Q22, Q12, Q66)` \[MPa\]:
     /// `Q11 = E1/(1 − ν12ν21)`, `Q22 = E2/(1 − ν12ν21)`,
     /// `Q12 = ν12 E2/(1 − ν12ν21)`, `Q66 = G12`.
     pub fn plane_stress_stiffness(&self) -> (f64, f64, f64, f64) {
@@ -94,7 +94,7 @@ impl MembraneMaterial for OrthotropicSvk {
         Ok(state)
     }
 
-    /// [`OrthotropicSvk::fibre_stress_lanes`] on one point.
+    /// `OrthotropicSvk::fibre_stress_lanes` on one point.
     #[inline(always)]
     fn fibre_stress(&self, c: &Sym2) -> Result<Sym2, MaterialError> {
         let ([s11, s22, s12], accepted) = self.fibre_stress_lanes(&[c[0], c[1], c[2]]);

@@ -38,13 +38,13 @@ pub struct UdNcf {
 pub struct UdNcfPoint {
     /// The pseudo-invariants.
     pub invariants: Invariants,
-    /// Total energy `W` [MPa].
+    /// Total energy `W` \[MPa\].
     pub energy: f64,
-    /// Energy contributions `[W4, W6, W8, W11]` [MPa].
+    /// Energy contributions `[W4, W6, W8, W11]` \[MPa\].
     pub contributions: [f64; 4],
-    /// Total derivative `dW/d(I4, I6, I8)` [MPa].
+    /// Total derivative `dW/d(I4, I6, I8)` \[MPa\].
     pub gradient: [f64; 3],
-    /// Total second derivative `d²W/d(I4, I6, I8)²` [MPa]; zero unless asked.
+    /// Total second derivative `d²W/d(I4, I6, I8)²` \[MPa\]; zero unless asked.
     pub hessian: [[f64; 3]; 3],
 }
 
@@ -271,7 +271,7 @@ impl MembraneMaterial for UdNcf {
 
     /// The force pass's path: the stress of [`UdNcf::evaluate_invariants`]
     /// without the energy, as the one-lane case of
-    /// [`UdNcf::fibre_stress_lanes`] (so the same bits as every lane of the
+    /// `UdNcf::fibre_stress_lanes` (so the same bits as every lane of the
     /// batched pass); a rejected state is diagnosed by
     /// [`Invariants::in_fibre_basis`].
     #[inline(always)]

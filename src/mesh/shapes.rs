@@ -150,26 +150,26 @@ const STRIP: &str = "wrapped strip generator";
 /// generator does not check that they do not cross).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrappedStrip {
-    /// Width `w` along y [mm]; the strip spans `y ∈ [−w/2, w/2]`.
+    /// Width `w` along y \[mm\]; the strip spans `y ∈ [−w/2, w/2]`.
     pub width: f64,
-    /// Radius `r` of the mid-surface arc [mm].
+    /// Radius `r` of the mid-surface arc \[mm\].
     pub radius: f64,
-    /// Wrap angle `α` [rad], in `[0, 2π)`.
+    /// Wrap angle `α` \[rad\], in `[0, 2π)`.
     pub wrap_angle: f64,
-    /// Length `L_t` of each straight tail [mm], `≥ 0`.
+    /// Length `L_t` of each straight tail \[mm\], `≥ 0`.
     pub tail_length: f64,
-    /// Target element size `h` [mm].
+    /// Target element size `h` \[mm\].
     pub element_size: f64,
 }
 
 impl WrappedStrip {
-    /// Length of the mid-surface along the rovings, `α r + 2 L_t` [mm].
+    /// Length of the mid-surface along the rovings, `α r + 2 L_t` \[mm\].
     pub fn length(&self) -> f64 {
         self.wrap_angle * self.radius + 2.0 * self.tail_length
     }
 
     /// The reference mid-surface point at arc length `u ∈ [0, α r + 2 L_t]`
-    /// from end `a` and width coordinate `y` [mm]. With `φ = −α/2 +
+    /// from end `a` and width coordinate `y` \[mm\]. With `φ = −α/2 +
     /// (u − L_t)/r`:
     ///
     /// ```text

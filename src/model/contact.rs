@@ -44,13 +44,13 @@ const CULL_MARGIN: f64 = 1.0;
 pub struct NodeContact {
     /// 0 open, 1 stick, 2 slip.
     pub status: u8,
-    /// Normal force [N].
+    /// Normal force \[N\].
     pub normal_force: f64,
-    /// Magnitude of the friction force [N].
+    /// Magnitude of the friction force \[N\].
     pub friction_force: f64,
-    /// Gap of the mid-surface offset to the tool [mm] (∞ when far).
+    /// Gap of the mid-surface offset to the tool \[mm\] (∞ when far).
     pub gap: f64,
-    /// Accumulated slip along the tool [mm].
+    /// Accumulated slip along the tool \[mm\].
     pub slip: f64,
 }
 
@@ -67,7 +67,7 @@ fn status_code(status: ContactStatus) -> u8 {
 pub struct ContactOptions {
     /// Coulomb coefficient `μ ≥ 0`.
     pub friction: f64,
-    /// Largest accepted penetration after augmentation [mm].
+    /// Largest accepted penetration after augmentation \[mm\].
     pub gap_tolerance: f64,
     /// Largest accepted relative change of the multipliers per
     /// augmentation.
@@ -117,8 +117,8 @@ pub struct ToolContact {
 
 impl ToolContact {
     /// Contact of the model nodes `nodes` (reference positions
-    /// `reference`, mid-surface offsets `offsets` [mm], nodal areas `areas`
-    /// [mm²], augmented-Lagrangian penalties `penalties` [N/mm]) with the
+    /// `reference`, mid-surface offsets `offsets` \[mm\], nodal areas `areas`
+    /// \[mm²\], augmented-Lagrangian penalties `penalties` [N/mm]) with the
     /// tool `surface` (world frame, at `q = 0`) translating along the unit
     /// `direction` by extra dof `extra` of a model of `model_nodes` nodes.
     #[allow(clippy::too_many_arguments)]
@@ -175,7 +175,7 @@ impl ToolContact {
         &self.nodes
     }
 
-    /// The nodal areas [mm²] (for contact pressures).
+    /// The nodal areas \[mm²\] (for contact pressures).
     pub fn areas(&self) -> &[f64] {
         &self.areas
     }
@@ -191,7 +191,7 @@ impl ToolContact {
     }
 
     /// Force of the plies on the tool along its direction at the last
-    /// evaluation [N]: the force that drives or holds it, positive when the
+    /// evaluation \[N\]: the force that drives or holds it, positive when the
     /// plies resist its motion.
     pub fn tool_force(&self) -> f64 {
         self.tool_force

@@ -60,7 +60,7 @@ pub struct DeadLoad {
 }
 
 impl DeadLoad {
-    /// Forces `node_forces` [N] on nodes and `extra_forces` [N] on extra
+    /// Forces `node_forces` \[N\] on nodes and `extra_forces` \[N\] on extra
     /// dofs (by extra index), following `amplitude`, in a model of
     /// `model_nodes` nodes.
     pub fn new(
@@ -83,7 +83,7 @@ impl DeadLoad {
         }
     }
 
-    /// The total force on the nodes at full load [N].
+    /// The total force on the nodes at full load \[N\].
     pub fn total_node_force(&self) -> Vector3<f64> {
         self.node_forces.iter().map(|(_, f)| f).sum()
     }
@@ -204,7 +204,7 @@ pub struct RigidBodyMass {
 }
 
 impl RigidBodyMass {
-    /// Mass `mass` [t] on extra dof `extra`.
+    /// Mass `mass` \[t\] on extra dof `extra`.
     pub fn new(name: impl Into<String>, extra: usize, mass: f64) -> Self {
         Self {
             name: name.into(),

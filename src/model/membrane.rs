@@ -21,7 +21,7 @@ const ELEMENT_MIN_LEN: usize = 512;
 /// Reference configuration and constitutive data of a membrane.
 #[derive(Debug, Clone)]
 pub struct MembraneModel {
-    /// Reference node positions [mm] (all nodes of the model; the
+    /// Reference node positions \[mm\] (all nodes of the model; the
     /// triangles index them).
     pub nodes: Vec<Vector3<f64>>,
     /// Triangles (node indices).
@@ -30,7 +30,7 @@ pub struct MembraneModel {
     pub references: Vec<MembraneReference>,
     /// The law.
     pub material: Material,
-    /// Membrane thickness `t` [mm].
+    /// Membrane thickness `t` \[mm\].
     pub thickness: f64,
 }
 
@@ -65,7 +65,7 @@ impl MembraneModel {
     }
 
     /// Nodal displacements of triangle `e` from the global displacement `u`
-    /// (3 per node) [mm].
+    /// (3 per node) \[mm\].
     #[inline]
     pub fn element_displacements(&self, e: usize, u: &[f64]) -> [Vector3<f64>; 3] {
         let t = self.triangles[e];

@@ -40,15 +40,15 @@ impl Stencils {
 /// The state a term is evaluated at.
 #[derive(Debug, Clone, Copy)]
 pub struct State<'a> {
-    /// Displacement of every dof: 3 per node, then the extra dofs [mm].
+    /// Displacement of every dof: 3 per node, then the extra dofs \[mm\].
     pub u: &'a [f64],
     /// The load parameter `λ` the solver drives (a clamp or tool
-    /// displacement [mm], or a load fraction).
+    /// displacement \[mm\], or a load fraction).
     pub load: f64,
     /// `λ / λ_final` in `[0, 1]`: the fraction of the load programme, which
     /// ramped loads follow.
     pub load_fraction: f64,
-    /// The time increment that led to this state [s] (explicit path; 0 on
+    /// The time increment that led to this state \[s\] (explicit path; 0 on
     /// the quasi-static path and at the start).
     pub time_step: f64,
 }
@@ -95,7 +95,7 @@ pub struct Augmentation {
     /// `true` when the term's constraints are satisfied to its tolerances
     /// at the state the multipliers were updated from.
     pub converged: bool,
-    /// Largest penetration (negative gap) [mm].
+    /// Largest penetration (negative gap) \[mm\].
     pub max_penetration: f64,
     /// `‖λ_new − λ_old‖ / max(‖λ_new‖, floor)`: the relative change of the
     /// multipliers.
@@ -119,7 +119,7 @@ impl Augmentation {
     }
 }
 
-/// Lumped masses of the explicit solver [t], written by the terms that
+/// Lumped masses of the explicit solver \[t\], written by the terms that
 /// carry mass.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Masses {
@@ -129,7 +129,7 @@ pub struct Masses {
     pub extra: Vec<f64>,
 }
 
-/// What mass scaling did to one term [t].
+/// What mass scaling did to one term \[t\].
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct MassScaling {
     /// Physical mass of the term.
@@ -238,8 +238,8 @@ pub trait Term: Send + Sync + std::any::Any {
         self.stencil(s, nodes, extras);
     }
 
-    /// Adds the term's lumped masses [t] (after any mass scaling) and
-    /// returns its physical mass [t].
+    /// Adds the term's lumped masses \[t\] (after any mass scaling) and
+    /// returns its physical mass \[t\].
     fn lumped_masses(&self, _masses: &mut Masses) -> f64 {
         0.0
     }
@@ -259,7 +259,7 @@ pub trait Term: Send + Sync + std::any::Any {
     }
 
     /// Called once before the time loop with the lumped masses and the
-    /// stable step of the model without this term's stiffness [s] (a
+    /// stable step of the model without this term's stiffness \[s\] (a
     /// penalty term picks its stiffness from them).
     ///
     /// # Errors

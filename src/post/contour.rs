@@ -30,7 +30,7 @@ pub const NO_VALUE_GREY: [u8; 3] = [150, 150, 150];
 pub struct ContourMap<'a> {
     /// Title above the map.
     pub title: String,
-    /// Node coordinates `(x, y)` [mm], e.g. the deformed mesh projected on
+    /// Node coordinates `(x, y)` \[mm\], e.g. the deformed mesh projected on
     /// its plane.
     pub points: &'a [[f64; 2]],
     /// Triangles as indices into `points`.
@@ -51,17 +51,17 @@ pub struct ContourMap<'a> {
 pub struct MapFrame {
     /// Top-left pixel of the plotting rectangle (inside the axes).
     pub plot_origin: (i32, i32),
-    /// Width and height of the plotting rectangle [px].
+    /// Width and height of the plotting rectangle \[px\].
     pub plot_size: (u32, u32),
-    /// The x range shown [mm].
+    /// The x range shown \[mm\].
     pub x_range: (f64, f64),
-    /// The y range shown [mm].
+    /// The y range shown \[mm\].
     pub y_range: (f64, f64),
     /// Scale [px/mm], the same in x and y.
     pub pixels_per_mm: f64,
     /// Top-left pixel of the colour bar's colour strip.
     pub bar_origin: (i32, i32),
-    /// Width and height of the colour strip [px].
+    /// Width and height of the colour strip \[px\].
     pub bar_size: (u32, u32),
     /// The value range of the colour bar (bottom, top).
     pub value_range: (f64, f64),
@@ -70,7 +70,7 @@ pub struct MapFrame {
 }
 
 impl MapFrame {
-    /// The position of the point `p` [mm] in the picture, in continuous
+    /// The position of the point `p` \[mm\] in the picture, in continuous
     /// pixel coordinates (the centre of pixel `(i, j)` is `(i + 0.5, j + 0.5)`).
     pub fn to_pixel(&self, p: [f64; 2]) -> (f64, f64) {
         let s = self.pixels_per_mm;

@@ -13,7 +13,7 @@ use crate::model::MembraneModel;
 pub struct ElementFields {
     /// `E22 = I8 − 1` (stitching strain).
     pub e22: f64,
-    /// Shear angle `γ = I10` [deg].
+    /// Shear angle `γ = I10` \[deg\].
     pub shear_angle_deg: f64,
     /// `E⊥ = I11 − 1` (strain across the current rovings).
     pub e_perp: f64,
@@ -27,14 +27,14 @@ pub struct ElementFields {
     pub i11: f64,
     /// `k11(I11)` (1 for a law without coupling).
     pub k11: f64,
-    /// Energy density `W` [MPa].
+    /// Energy density `W` \[MPa\].
     pub energy_density: f64,
-    /// `S` in global axes `[Sxx, Syy, Sxy]` [MPa] (reference configuration;
+    /// `S` in global axes `[Sxx, Syy, Sxy]` \[MPa\] (reference configuration;
     /// in-plane components for a membrane in the xy-plane).
     pub stress_xy: [f64; 3],
 }
 
-/// Fields of every element at displacement `u` (all dofs, [mm]).
+/// Fields of every element at displacement `u` (all dofs, \[mm\]).
 ///
 /// # Errors
 /// The first element whose state the law rejects, with its index.

@@ -86,11 +86,11 @@ pub struct Field<'a> {
 /// One triangle mesh with its fields: the content of a `.vtu` file.
 #[derive(Debug, Clone)]
 pub struct VtuPiece<'a> {
-    /// Node coordinates (deformed) [mm].
+    /// Node coordinates (deformed) \[mm\].
     pub points: &'a [[f64; 3]],
     /// Triangles as indices into `points`.
     pub triangles: &'a [[usize; 3]],
-    /// Fields with one entry per point, e.g. the displacement [mm].
+    /// Fields with one entry per point, e.g. the displacement \[mm\].
     pub point_fields: Vec<Field<'a>>,
     /// Fields with one entry per triangle, e.g. strains, the shear angle,
     /// stresses.

@@ -65,7 +65,7 @@ pub struct Assembler {
     /// Symbolic structure of the free-dof tangent (CSC, sorted rows).
     pub symbolic: SymbolicSparseColMat<usize>,
     terms: Vec<TermBuffers>,
-    /// Wall time spent in each term's evaluation [s], by term.
+    /// Wall time spent in each term's evaluation \[s\], by term.
     pub term_seconds: Vec<(String, f64)>,
 }
 
@@ -149,7 +149,7 @@ impl Assembler {
     }
 
     /// Total potential `Σ Π_term` [N·mm] and the residual `internal` (all
-    /// dofs, [N]: `f_int − f_ext`) at `state`.
+    /// dofs, \[N\]: `f_int − f_ext`) at `state`.
     ///
     /// # Errors
     /// The first term (in order) that failed, at its lowest-index stencil.

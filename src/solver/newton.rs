@@ -56,7 +56,7 @@ pub struct NewtonParameters {
     pub residual_tolerance: f64,
     /// Energy-norm tolerance relative to the step's first iteration. Default 1e-12.
     pub energy_tolerance: f64,
-    /// Absolute floor of the residual criterion [N]. Default 1e-9.
+    /// Absolute floor of the residual criterion \[N\]. Default 1e-9.
     pub force_floor: f64,
     /// A step converged in at most this many iterations grows the next one. Default 6.
     pub easy_iterations: usize,
@@ -112,7 +112,7 @@ pub struct StepRecord {
     /// Newton iterations of the converged attempt (over all its
     /// augmentations).
     pub iterations: usize,
-    /// Residual norms `‖r_free‖` of the converged attempt, one per iteration [N].
+    /// Residual norms `‖r_free‖` of the converged attempt, one per iteration \[N\].
     pub residuals: Vec<f64>,
     /// Failed attempts before this step converged.
     pub cutbacks: usize,
@@ -147,7 +147,7 @@ pub enum RunStatus {
     },
 }
 
-/// Wall-clock time spent in the parts of the solve [s].
+/// Wall-clock time spent in the parts of the solve \[s\].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct SolverTimings {
     /// Symbolic analysis (once).
@@ -183,7 +183,7 @@ pub struct QuasiStaticResult {
     pub linear_solver: LinearSolverKind,
     /// Newton solves beyond the first per step, summed over the run.
     pub augmentations: usize,
-    /// Of the assembly time, the part each term took to evaluate [s].
+    /// Of the assembly time, the part each term took to evaluate \[s\].
     pub term_seconds: Vec<(String, f64)>,
 }
 
@@ -529,12 +529,12 @@ impl Newton<'_> {
 }
 
 /// What a step or output callback sees: the converged displacement, the
-/// residual of every dof (the reaction at a constrained one, [N]) and the
+/// residual of every dof (the reaction at a constrained one, \[N\]) and the
 /// model (for terms' own outputs: contact forces, say).
 pub struct Snapshot<'a> {
-    /// Displacement of every dof [mm].
+    /// Displacement of every dof \[mm\].
     pub u: &'a [f64],
-    /// `f_int − f_ext` of every dof [N].
+    /// `f_int − f_ext` of every dof \[N\].
     pub residual: &'a [f64],
     /// The model at this state.
     pub model: &'a Model,

@@ -39,8 +39,8 @@ use super::{
 use crate::contact::SurfacePoint;
 
 /// The central-difference limit for one contact spring on a node of mass
-/// `mass` [t] (doc Sec. "Stiffness limit"): `k = c · 4 m / Δt²` [N/mm] for
-/// the time step `time_step` [s] and a fraction `c = fraction ∈ (0, 1]`.
+/// `mass` \[t\] (doc Sec. "Stiffness limit"): `k = c · 4 m / Δt²` [N/mm] for
+/// the time step `time_step` \[s\] and a fraction `c = fraction ∈ (0, 1]`.
 /// One spring `k` on a mass `m` is stable for `ω Δt ≤ 2`, i.e.
 /// `k ≤ 4 m/Δt²`; the node's other stiffness (the membrane) needs the rest:
 /// with the step at `s · 2/ω_membrane`, `c ≤ 1 − s²` keeps the sum stable.
@@ -97,7 +97,7 @@ pub struct PenaltyContact {
 impl PenaltyContact {
     /// Settings with normal stiffness `k_N` [N/mm] `> 0`, tangential
     /// (stick) stiffness `k_T` [N/mm] `> 0`, Coulomb coefficient `μ ≥ 0`
-    /// and the mid-surface offset [mm] `≥ 0`.
+    /// and the mid-surface offset \[mm\] `≥ 0`.
     ///
     /// # Errors
     /// A setting that is not finite or out of its range.
@@ -132,7 +132,7 @@ impl PenaltyContact {
         Self::new(stiffness, stiffness, friction, offset)
     }
 
-    /// Changes the mid-surface offset [mm].
+    /// Changes the mid-surface offset \[mm\].
     ///
     /// # Errors
     /// An offset that is negative or not finite.
@@ -156,19 +156,19 @@ impl PenaltyContact {
         self.friction
     }
 
-    /// The mid-surface offset [mm].
+    /// The mid-surface offset \[mm\].
     pub fn offset(&self) -> f64 {
         self.offset
     }
 
     /// The frequency bound `ω²` [1/s²] of one contact spring on a node of
-    /// mass `mass` [t] (doc Sec. "Frequency bound"):
+    /// mass `mass` \[t\] (doc Sec. "Frequency bound"):
     ///
     /// ```text
     /// ω² = ( max(k_N, k_T) + C_μ κ (k_N p + 2 |t|) ) / m,   C_μ = ((√(μ² + 4) + μ)/2)²
     /// ```
     ///
-    /// with the penetration `p = ⟨−g⟩` [mm], the friction force `|t|` [N]
+    /// with the penetration `p = ⟨−g⟩` \[mm\], the friction force `|t|` \[N\]
     /// and `κ` = [`max_curvature`] of the tool at the node [1/mm]. It
     /// bounds the spectral radius of the contact stiffness `∂r_y/∂y` over
     /// `m`: `max(k_N, k_T)` is that of the flat part, the curvature terms
@@ -199,7 +199,7 @@ impl PenaltyContact {
         Ok(stiffness / mass)
     }
 
-    /// Advances the pair to the relative position `y` [mm] (Eq. E1–E7 of
+    /// Advances the pair to the relative position `y` \[mm\] (Eq. E1–E7 of
     /// the module doc): force, status, energies and dissipation of the
     /// call. `point` is the surface's answer at `y`; `None` (culled: far
     /// on the free side) is open with `gap = ∞`, and a spring left from a
@@ -316,10 +316,10 @@ impl PenaltyContact {
 /// The state of one node–tool pair of the explicit kernel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PenaltyState {
-    /// The elastic tangential spring `s_e` [mm] (world frame, tangent to
+    /// The elastic tangential spring `s_e` \[mm\] (world frame, tangent to
     /// the last plane; zero when open).
     pub spring: Vector3<f64>,
-    /// `y_prev` [mm]: the relative position of the last call.
+    /// `y_prev` \[mm\]: the relative position of the last call.
     pub previous_position: Vector3<f64>,
     /// The status of the last call.
     pub status: ContactStatus,
@@ -329,13 +329,13 @@ pub struct PenaltyState {
     pub tangential_energy: f64,
     /// The friction work dissipated since the pair was created [N·mm].
     pub dissipated: f64,
-    /// The accumulated plastic slip length `Σ |Δs_p|` [mm] (the sliding
+    /// The accumulated plastic slip length `Σ |Δs_p|` \[mm\] (the sliding
     /// distance; elastic stick motion is not counted).
     pub slip_length: f64,
 }
 
 impl PenaltyState {
-    /// A fresh, open pair at the relative position `y` [mm].
+    /// A fresh, open pair at the relative position `y` \[mm\].
     pub fn new(y: &Vector3<f64>) -> Self {
         Self {
             spring: Vector3::zeros(),
@@ -367,20 +367,20 @@ impl PenaltyState {
 pub struct PenaltyResponse {
     /// Open, stick or slip.
     pub status: ContactStatus,
-    /// `g = d − offset` [mm] (`∞` when culled).
+    /// `g = d − offset` \[mm\] (`∞` when culled).
     pub gap: f64,
-    /// `f_N = k_N ⟨−g⟩` [N].
+    /// `f_N = k_N ⟨−g⟩` \[N\].
     pub normal_force: f64,
-    /// The friction force `t` [N] (tangent, along the slip; the force on
+    /// The friction force `t` \[N\] (tangent, along the slip; the force on
     /// the node is `−t`); `|t| ≤ μ f_N`.
     pub tangential_force: Vector3<f64>,
-    /// `Δs = P (y − y_prev)` [mm] (zero when open).
+    /// `Δs = P (y − y_prev)` \[mm\] (zero when open).
     pub slip_increment: Vector3<f64>,
-    /// The plastic slip `Δs_p` [mm] of the call (zero in stick and open).
+    /// The plastic slip `Δs_p` \[mm\] of the call (zero in stick and open).
     pub plastic_slip: Vector3<f64>,
     /// The surface normal at `y` (zero when culled).
     pub normal: Vector3<f64>,
-    /// `r_y = −f_c = −f_N n + t` [N]: the solver adds `−r_y` to the node's
+    /// `r_y = −f_c = −f_N n + t` \[N\]: the solver adds `−r_y` to the node's
     /// force.
     pub residual: Vector3<f64>,
     /// The energy dissipated by this call [N·mm] (Eq. E6–E7).
@@ -393,7 +393,7 @@ pub struct PenaltyResponse {
 }
 
 impl PenaltyResponse {
-    /// The contact force on the node `f_c = f_N n − t = −r_y` [N].
+    /// The contact force on the node `f_c = f_N n − t = −r_y` \[N\].
     pub fn force(&self) -> Vector3<f64> {
         -self.residual
     }

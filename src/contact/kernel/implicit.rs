@@ -47,7 +47,7 @@ pub struct AugmentedLagrangian {
 impl AugmentedLagrangian {
     /// Settings with normal penalty `ε_N` [N/mm] `> 0`, tangential penalty
     /// `ε_T` [N/mm] `> 0`, Coulomb coefficient `μ ≥ 0` (`0`: frictionless)
-    /// and the mid-surface offset [mm] `≥ 0` (half the ply thickness).
+    /// and the mid-surface offset \[mm\] `≥ 0` (half the ply thickness).
     ///
     /// # Errors
     /// A setting that is not finite or out of its range.
@@ -65,7 +65,7 @@ impl AugmentedLagrangian {
         })
     }
 
-    /// Changes the mid-surface offset [mm] (half the ply thickness).
+    /// Changes the mid-surface offset \[mm\] (half the ply thickness).
     ///
     /// # Errors
     /// An offset that is negative or not finite.
@@ -89,13 +89,13 @@ impl AugmentedLagrangian {
         self.friction
     }
 
-    /// The mid-surface offset [mm].
+    /// The mid-surface offset \[mm\].
     pub fn offset(&self) -> f64 {
         self.offset
     }
 
     /// Residual `r_y`, consistent tangent `K = ∂r_y/∂y` and outputs of the
-    /// pair at the relative position `y` [mm] (Eq. I1–I7 of the module
+    /// pair at the relative position `y` \[mm\] (Eq. I1–I7 of the module
     /// doc). `point` is the surface's answer at `y`; `None` (the node
     /// farther than the surface's cull distance) gives an open contact
     /// with `gap = ∞`.
@@ -185,19 +185,19 @@ impl AugmentedLagrangian {
 /// [`restore`](Self::restore). The slip reference changes only at commit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImplicitContactState {
-    /// `λ_N ≥ 0` [N].
+    /// `λ_N ≥ 0` \[N\].
     pub normal_multiplier: f64,
-    /// `λ_T` [N] (world frame; re-projected on the current tangent plane
+    /// `λ_T` \[N\] (world frame; re-projected on the current tangent plane
     /// when used).
     pub tangential_multiplier: Vector3<f64>,
-    /// `y_ref` [mm]: the relative position at the last converged step.
+    /// `y_ref` \[mm\]: the relative position at the last converged step.
     pub slip_reference: Vector3<f64>,
     committed_normal: f64,
     committed_tangential: Vector3<f64>,
 }
 
 impl ImplicitContactState {
-    /// A fresh pair at the relative position `y` [mm]: zero multipliers,
+    /// A fresh pair at the relative position `y` \[mm\]: zero multipliers,
     /// `y_ref = y`.
     pub fn new(y: &Vector3<f64>) -> Self {
         Self::with_multipliers(y, 0.0, &Vector3::zeros())
@@ -251,7 +251,7 @@ impl ImplicitContactState {
         }
     }
 
-    /// Accepts a converged load step at the relative position `y` [mm]:
+    /// Accepts a converged load step at the relative position `y` \[mm\]:
     /// `y_ref ← y` (the slip of the next step counts from here) and the
     /// working multipliers become the committed ones (kept as the next
     /// step's start). Call it after the last [`augment`](Self::augment), so
@@ -280,18 +280,18 @@ impl ImplicitContactState {
 pub struct ImplicitResponse {
     /// Open, stick or slip.
     pub status: ContactStatus,
-    /// `g = d − offset` [mm] (`∞` when the surface culled the node).
+    /// `g = d − offset` \[mm\] (`∞` when the surface culled the node).
     pub gap: f64,
-    /// `t_N ≥ 0` [N] (Eq. I1).
+    /// `t_N ≥ 0` \[N\] (Eq. I1).
     pub normal_force: f64,
-    /// `t_T` [N], tangent to the current plane, along the slip: the force
+    /// `t_T` \[N\], tangent to the current plane, along the slip: the force
     /// on the node is `−t_T` (Eq. I3).
     pub tangential_force: Vector3<f64>,
-    /// `Δs = P (y − y_ref)` [mm] (zero when open).
+    /// `Δs = P (y − y_ref)` \[mm\] (zero when open).
     pub slip_increment: Vector3<f64>,
     /// The surface normal `n` at `y` (zero when culled).
     pub normal: Vector3<f64>,
-    /// `r_y = −f_c = −t_N n + t_T` [N] (Eq. I4).
+    /// `r_y = −f_c = −t_N n + t_T` \[N\] (Eq. I4).
     pub residual: Vector3<f64>,
     /// The consistent tangent `K = ∂r_y/∂y` [N/mm] (Eq. I5–I7),
     /// unsymmetric with friction.
@@ -312,7 +312,7 @@ impl ImplicitResponse {
         }
     }
 
-    /// The contact force on the node `f_c = t_N n − t_T = −r_y` [N].
+    /// The contact force on the node `f_c = t_N n − t_T = −r_y` \[N\].
     pub fn force(&self) -> Vector3<f64> {
         -self.residual
     }
@@ -331,15 +331,15 @@ impl ImplicitResponse {
 /// test (doc Sec. "Uzawa update, commit and restore").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AugmentationReport {
-    /// `⟨−g⟩` [mm]: the penetration at the evaluated state (0 if open).
+    /// `⟨−g⟩` \[mm\]: the penetration at the evaluated state (0 if open).
     pub penetration: f64,
-    /// `|λ_N,new − λ_N,old|` [N].
+    /// `|λ_N,new − λ_N,old|` \[N\].
     pub normal_change: f64,
-    /// `|λ_T,new − λ_T,old|` [N].
+    /// `|λ_T,new − λ_T,old|` \[N\].
     pub tangential_change: f64,
-    /// `λ_N,new` [N].
+    /// `λ_N,new` \[N\].
     pub normal_multiplier: f64,
-    /// `|λ_T,new|` [N].
+    /// `|λ_T,new|` \[N\].
     pub tangential_multiplier: f64,
 }
 
@@ -348,11 +348,11 @@ pub struct AugmentationReport {
 /// multipliers (normal and tangential together, both in N).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AugmentationNorms {
-    /// `max ⟨−g⟩` [mm].
+    /// `max ⟨−g⟩` \[mm\].
     pub max_penetration: f64,
-    /// `Σ (Δλ_N² + |Δλ_T|²)` [N²].
+    /// `Σ (Δλ_N² + |Δλ_T|²)` \[N²\].
     pub change_squared: f64,
-    /// `Σ (λ_N² + |λ_T|²)` [N²] of the new multipliers.
+    /// `Σ (λ_N² + |λ_T|²)` \[N²\] of the new multipliers.
     pub multiplier_squared: f64,
 }
 

@@ -139,7 +139,7 @@ pub fn couple_tool_translation(
     }
 }
 
-/// The mid-surface gap `g = d − offset` [mm] (doc Sec. "Gap"): negative
+/// The mid-surface gap `g = d − offset` \[mm\] (doc Sec. "Gap"): negative
 /// when the ply penetrates the tool.
 #[inline]
 pub fn gap(point: &SurfacePoint, offset: f64) -> f64 {

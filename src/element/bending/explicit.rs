@@ -189,7 +189,7 @@ pub struct BendingPass {
 
 impl BendingPass {
     /// Lays out the pass for the elements `elements` (one per triangle of
-    /// `topology`, built from the reference positions `nodes` [mm]) with the
+    /// `topology`, built from the reference positions `nodes` \[mm\]) with the
     /// stiffness `stiffness`.
     ///
     /// # Errors
@@ -363,7 +363,7 @@ impl BendingPass {
         }
     }
 
-    /// The current positions `X + u` [mm] of the six stencil slots of
+    /// The current positions `X + u` \[mm\] of the six stencil slots of
     /// element `e` for the reference kernels (ignored slots: the element's
     /// first node).
     pub fn positions(&self, e: usize, u: &[f64]) -> [Vector3<f64>; 6] {
@@ -376,7 +376,7 @@ impl BendingPass {
     }
 
     /// Phase 1 for the batches `first..first + geometry.len()`: own edges,
-    /// `|N|`, `1/|N|` and the unit normal from the displacements `u` [mm]
+    /// `|N|`, `1/|N|` and the unit normal from the displacements `u` \[mm\]
     /// (3 per node); the normals also into `normals` (`LANES` slots per
     /// batch).
     pub fn geometry(
@@ -581,8 +581,8 @@ impl BendingPass {
         }
     }
 
-    /// All three phases for the displacements `u` [mm], the bending forces
-    /// `∂W/∂x` [N] of each element's own nodes *added* to `forces` (one slot
+    /// All three phases for the displacements `u` \[mm\], the bending forces
+    /// `∂W/∂x` \[N\] of each element's own nodes *added* to `forces` (one slot
     /// per element, node-major). Runs in parallel on rayon's current pool
     /// over chunks of batches, a barrier between the phases.
     ///

@@ -144,7 +144,7 @@ pub enum BendingError {
     /// The element's own triangle has (nearly) zero area.
     #[error("degenerate triangle: area {area:e} mm² is not positive (nodes collinear or repeated)")]
     Degenerate {
-        /// The area [mm²].
+        /// The area \[mm²\].
         area: f64,
     },
     /// The fibre direction has no component in the triangle's plane.
@@ -163,7 +163,7 @@ pub enum BendingError {
     DegenerateHinge {
         /// Local edge index `0..3`.
         edge: usize,
-        /// The partner triangle's area [mm²].
+        /// The partner triangle's area \[mm²\].
         area: f64,
     },
     /// An interior hinge is completely folded (`1 + cos θ ≤ FOLD_LIMIT`),
@@ -201,7 +201,7 @@ pub enum BendingError {
     InvalidMass {
         /// Slot `0..6`.
         slot: usize,
-        /// The mass given [t].
+        /// The mass given \[t\].
         mass: f64,
     },
     /// A bending stiffness is negative or not finite.

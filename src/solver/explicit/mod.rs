@@ -41,7 +41,7 @@ pub use system::{ExplicitSystem, Update};
 /// Displacement and velocity of every dof (3 per node).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExplicitState {
-    /// Displacement `u` [mm].
+    /// Displacement `u` \[mm\].
     pub u: Vec<f64>,
     /// Velocity [mm/s]: the initial velocity on entry, the last half-step
     /// velocity `v_{n−½}` on return.
@@ -113,19 +113,19 @@ impl Energies {
 pub struct ExplicitRecord {
     /// Time increments taken so far.
     pub increment: usize,
-    /// Time [s].
+    /// Time \[s\].
     pub time: f64,
-    /// Load parameter `λ(t)` (a clamp displacement, say) [mm].
+    /// Load parameter `λ(t)` (a clamp displacement, say) \[mm\].
     pub load: f64,
-    /// Generalised reaction `R = Σ_d p_d f_int,d` (the clamp force) [N].
+    /// Generalised reaction `R = Σ_d p_d f_int,d` (the clamp force) \[N\].
     pub reaction: f64,
-    /// The time step in use [s].
+    /// The time step in use \[s\].
     pub time_step: f64,
     /// Energies [N·mm].
     pub energies: Energies,
 }
 
-/// Wall-clock split of an explicit run [s].
+/// Wall-clock split of an explicit run \[s\].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct ExplicitTimings {
     /// Set-up: element data, adjacency, masses, mass scaling.
@@ -160,9 +160,9 @@ pub struct ExplicitResult {
     pub increments: usize,
     /// `increments × triangles` (the stencils of the model's largest term).
     pub element_cycles: u64,
-    /// The estimated critical step at the start, before the safety factor [s].
+    /// The estimated critical step at the start, before the safety factor \[s\].
     pub initial_critical_time_step: f64,
-    /// Smallest and largest step taken [s] (outputs may shorten a step).
+    /// Smallest and largest step taken \[s\] (outputs may shorten a step).
     pub time_step_range: (f64, f64),
     /// Masses.
     pub mass: MassSummary,

@@ -68,10 +68,10 @@ pub enum TimeStepControl {
         /// Steps between two estimates, at least 1.
         update_interval: usize,
     },
-    /// A fixed step [s], whatever the stability estimate says (for studies
+    /// A fixed step \[s\], whatever the stability estimate says (for studies
     /// of the stability limit; the estimate is still reported).
     Fixed {
-        /// The step [s].
+        /// The step \[s\].
         time_step: f64,
     },
 }
@@ -79,13 +79,13 @@ pub enum TimeStepControl {
 /// Everything the explicit solver needs besides the model and the loading.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ExplicitParameters {
-    /// Duration `T` of the prescribed motion [s].
+    /// Duration `T` of the prescribed motion \[s\].
     pub duration: f64,
     /// Shape of the prescribed motion.
     pub amplitude: Amplitude,
     /// Time-step choice.
     pub time_step: TimeStepControl,
-    /// Mass scaling: elements whose stable step is below this target [s]
+    /// Mass scaling: elements whose stable step is below this target \[s\]
     /// get their density raised so that it reaches it. `None`: no scaling.
     pub mass_scaling_target: Option<f64>,
     /// Mass-proportional damping coefficient `α` [1/s]: a force `−α m v` on
@@ -100,7 +100,7 @@ pub struct ExplicitParameters {
 }
 
 impl ExplicitParameters {
-    /// Defaults for a run of duration `duration` [s]: smooth step, safety factor 0.9 updated every 100 steps, no
+    /// Defaults for a run of duration `duration` \[s\]: smooth step, safety factor 0.9 updated every 100 steps, no
     /// mass scaling, no damping, warning at KE > 1 % of IE, all cores.
     pub fn new(duration: f64) -> Self {
         Self {

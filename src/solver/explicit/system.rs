@@ -17,9 +17,9 @@ pub const NODE_BLOCK: usize = 256;
 /// Mass figures of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct MassSummary {
-    /// Physical mass [t].
+    /// Physical mass \[t\].
     pub physical: f64,
-    /// Mass added by mass scaling [t].
+    /// Mass added by mass scaling \[t\].
     pub added: f64,
     /// `added / physical`.
     pub added_fraction: f64,
@@ -52,9 +52,9 @@ pub enum SetupError {
 /// Coefficients of one node-pass update (central difference, leapfrog form).
 #[derive(Debug, Clone, Copy)]
 pub struct Update {
-    /// Velocity step `h = (Δt_{n−½} + Δt_{n+½}) / 2` [s].
+    /// Velocity step `h = (Δt_{n−½} + Δt_{n+½}) / 2` \[s\].
     pub velocity_step: f64,
-    /// Position step `Δt_{n+½}` [s].
+    /// Position step `Δt_{n+½}` \[s\].
     pub time_step: f64,
     /// Mass-proportional damping `α` [1/s].
     pub damping: f64,
@@ -77,7 +77,7 @@ pub struct ExplicitSystem {
     /// The same for every extra dof (one value per slot).
     extra_offsets: Vec<u32>,
     extra_entries: Vec<u32>,
-    /// Lumped masses [t].
+    /// Lumped masses \[t\].
     pub masses: Masses,
     /// `1 / mass` per node (0 for a massless node, which has no free dof).
     inverse_mass: Vec<f64>,
@@ -243,7 +243,7 @@ impl ExplicitSystem {
         Ok(())
     }
 
-    /// `2 / √(Σ_terms ω²_term)`: the estimated critical step at `state` [s]
+    /// `2 / √(Σ_terms ω²_term)`: the estimated critical step at `state` \[s\]
     /// (a lower bound of the true one); terms whose stiffness follows from
     /// the step are left out when `with_penalties` is false.
     ///
@@ -298,7 +298,7 @@ impl ExplicitSystem {
             .fold(0.0, |s, f| s + f)
     }
 
-    /// The residual `f_int − f_ext` of dof `dof` [N].
+    /// The residual `f_int − f_ext` of dof `dof` \[N\].
     pub fn dof_force(&self, forces: &[f64], dof: usize) -> f64 {
         if dof < 3 * self.nodes {
             let mut f = [0.0; 3];
