@@ -139,6 +139,7 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
                 friction: 0.147,
                 gap_tolerance: 3e-3,
                 multiplier_tolerance: 1e-3,
+                tangential_penalty_scale: 1.0,
                 explicit_stiffness: 0.1,
                 explicit_damping: 0.2,
             },

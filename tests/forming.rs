@@ -303,6 +303,16 @@ fn bad_forming_cases_name_key_value_and_expectation() {
             edit(&base, &[("g = 9810.0", "g = 9810.0\nspeed = 1.0")]),
             vec!["unknown field `speed`"],
         ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[output]",
+                    "[contact]\ntangential_penalty_scale = 0.0\n\n[output]",
+                )],
+            ),
+            vec!["contact.tangential_penalty_scale", "0", "a ratio > 0"],
+        ),
     ];
     for (text, parts) in cases {
         let msg = case_error(&text);

@@ -107,7 +107,16 @@ def explicit(text, settings):
 
 
 def capstan(ncform, work):
-    fine = case_text("capstan.toml", [("element_size = 2.5", "element_size = 1.25")])
+    # At h = 1.25 mm, without bending stiffness, the stick penalty of the
+    # automatic setting (the rovings' E t per node) leaves a stick zone of
+    # mu t_N / eps_T ~ 1e-4 mm per node, and Newton stalls on the
+    # stick/slip switches at zero tension; a tenth of it converges
+    # (docs/contact.md, "Limits"). The ratio at full slip, mu t_N exactly,
+    # does not depend on the penalty.
+    fine = case_text("capstan.toml", [
+        ("element_size = 2.5", "element_size = 1.25"),
+        ("[output]", "[contact]\ntangential_penalty_scale = 0.1\n\n[output]"),
+    ])
     code, out = run(ncform, work, "capstan.toml", fine)
     check("capstan-run", code == 0, f"quasi-static run exit {code}")
     if code != 0:

@@ -165,6 +165,7 @@ struct ContactRaw {
     offset: Option<Spanned<f64>>,
     penalty: Option<Spanned<f64>>,
     penalty_scale: Option<Spanned<f64>>,
+    tangential_penalty_scale: Option<Spanned<f64>>,
     gap_tolerance: Option<Spanned<f64>>,
     multiplier_tolerance: Option<Spanned<f64>>,
     explicit_stiffness: Option<Spanned<f64>>,
@@ -397,6 +398,8 @@ pub struct ContactSettings {
     pub penalty: Option<f64>,
     /// Factor on the automatic penalty.
     pub penalty_scale: f64,
+    /// Ratio `ε_T/ε_N` of the tangential (stick) to the normal penalty.
+    pub tangential_penalty_scale: f64,
     /// Largest accepted penetration \[mm\]; `None`: 1 % of the offset.
     pub gap_tolerance: Option<f64>,
     /// Largest accepted relative change of the multipliers per
@@ -416,6 +419,7 @@ impl Default for ContactSettings {
             offset: None,
             penalty: None,
             penalty_scale: 1.0,
+            tangential_penalty_scale: 1.0,
             gap_tolerance: None,
             multiplier_tolerance: 1e-3,
             explicit_stiffness: 0.1,
@@ -793,6 +797,13 @@ impl FormingCase {
             }
             if let Some(v) = &c.penalty_scale {
                 contact.penalty_scale = positive(v, "contact.penalty_scale", "a factor > 0")?;
+            }
+            if let Some(v) = &c.tangential_penalty_scale {
+                contact.tangential_penalty_scale = positive(
+                    v,
+                    "contact.tangential_penalty_scale",
+                    "a ratio > 0 of the tangential to the normal penalty",
+                )?;
             }
             if let Some(v) = &c.gap_tolerance {
                 contact.gap_tolerance =

@@ -581,6 +581,7 @@ impl FormingCase {
                             .gap_tolerance
                             .unwrap_or(0.01 * ply_spec.thickness),
                         multiplier_tolerance: self.contact.multiplier_tolerance,
+                        tangential_penalty_scale: self.contact.tangential_penalty_scale,
                         explicit_stiffness: self.contact.explicit_stiffness,
                         explicit_damping: self.contact.explicit_damping,
                     },

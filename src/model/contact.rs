@@ -72,6 +72,9 @@ pub struct ContactOptions {
     /// Largest accepted relative change of the multipliers per
     /// augmentation.
     pub multiplier_tolerance: f64,
+    /// Ratio `ε_T/ε_N` of the tangential (stick) penalty to the normal
+    /// penalty of each node (docs/contact.md, "The automatic penalty").
+    pub tangential_penalty_scale: f64,
     /// Explicit penalty as a fraction of each node's central-difference
     /// limit `4 m / Δt²`.
     pub explicit_stiffness: f64,
@@ -217,7 +220,7 @@ impl ToolContact {
     fn kernel(&self, i: usize) -> Result<AugmentedLagrangian, TermFailure> {
         AugmentedLagrangian::new(
             self.penalties[i],
-            self.penalties[i],
+            self.penalties[i] * self.options.tangential_penalty_scale,
             self.options.friction,
             self.offsets[i],
         )
