@@ -30,7 +30,7 @@ theta(0) = theta0, k(0) = m unknown; residual k(1; m) = 0.
    the residual changes sign), each shot with DOP853 at rtol = atol = 1e-13.
 Accuracy: the polish leaves |k(1)| ~ 1e-12, so delta is accurate to ~1e-11
 relative (measured by halving the integrator tolerances; see
-test_references.py).
+verify_references.py).
 
 Usage: reference_elastica.py  (prints the two paper cases and a small table)
 """

@@ -57,7 +57,7 @@ reaction d Pi / d(normal offset) is negative). F is the vertical reaction of
 the rim node. It discretises Pi directly, so it checks the ODEs of method 1,
 not only their integration.
 
-Accuracy (test_references.py): the shooting F is converged to ~1e-11
+Accuracy (verify_references.py): the shooting F is converged to ~1e-11
 (rtol 1e-9 vs 1e-11, integration start, rim residual, F = dPi/dd); the FE
 converges onto it (1.6e-6 at N = 1600). Depths below ~5e-4 a are out of reach
 (the rim residual floor exceeds RESIDUAL_TOL).

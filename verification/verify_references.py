@@ -7,7 +7,7 @@ limits, published values, each other's methods and their own convergence.
 Prints one PASS/FAIL line per check and ends with
 `CHECK-SUMMARY passed=N failed=M` (the protocol of verification/run.sh).
 
-Usage: test_references.py [--ncform PATH] [--full]
+Usage: verify_references.py [--ncform PATH] [--full]
 (--ncform is accepted for run.sh compatibility and not used; --full adds the
 FE mesh n = 1600 to the indentation cross-check, ~80 s more.) Run time
 without --full: about 1 min on the 2-core machine.
