@@ -393,7 +393,8 @@ pub struct ContactSettings {
     /// Distance of the contact surface from the ply's mid-surface \[mm\];
     /// `None`: half of each ply's thickness.
     pub offset: Option<f64>,
-    /// Normal and tangential penalty of the augmented Lagrangian [N/mm];
+    /// Normal penalty of the augmented Lagrangian [N/mm] (the tangential one
+    /// is `tangential_penalty_scale` times it);
     /// `None`: automatic (`docs/contact.md`).
     pub penalty: Option<f64>,
     /// Factor on the automatic penalty.
