@@ -1596,3 +1596,46 @@ fn bad_files_are_reported() {
         "{e}"
     );
 }
+
+/// Requirement: a query with a finite `max_distance` answers exactly when
+/// the unbounded query finds the point within it — the cheap rejections
+/// (the plate's "above the face" test, the cull distance of every shape)
+/// never drop a point that is close enough, nor keep one that is not.
+/// Points from the four zones of the plate and from above and below it,
+/// bounds from −1 to 10 mm.
+#[test]
+fn bounded_queries_agree_with_unbounded_ones() {
+    let mut rng = StdRng::seed_from_u64(41);
+    let plate = PlateWithHole::new(OPENING, FILLET).unwrap();
+    let sphere = Sphere::new(40.0, Side::Outside).unwrap();
+    let cylinder = Cylinder::new(30.0, Side::Outside).unwrap();
+    let torus = Torus::new(TORUS_MAJOR, TORUS_MINOR, Side::Outside).unwrap();
+    let shapes: [(&str, &dyn RigidSurface); 4] = [
+        ("plate with hole", &plate),
+        ("sphere", &sphere),
+        ("cylinder", &cylinder),
+        ("torus", &torus),
+    ];
+    let mut checked = 0;
+    for _ in 0..4000 {
+        let x = random_point(&mut rng, Vector3::new(120.0, 120.0, 30.0));
+        let bound = rng.random_range(-1.0..10.0);
+        for (name, shape) in shapes {
+            let Some(full) = shape.closest(&x, f64::INFINITY) else {
+                continue;
+            };
+            let bounded = shape.closest(&x, bound);
+            assert_eq!(
+                bounded.is_some(),
+                full.distance <= bound,
+                "{name} at {x:?}: distance {} mm, bound {bound} mm",
+                full.distance
+            );
+            if let Some(point) = bounded {
+                assert_eq!(point, full, "{name} at {x:?}");
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 10_000, "only {checked} queries compared");
+}

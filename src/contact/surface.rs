@@ -506,13 +506,22 @@ impl Cylinder {
     }
 }
 
+/// The distance `ρ = √(x² + y²)` \[mm\] of a point from the local z axis.
+/// Not `hypot`: the coordinates are finite lengths in mm, far from
+/// overflow, and the library `hypot` costs about as much as the rest of a
+/// query.
+#[inline]
+fn radial(x: &Vector3<f64>) -> f64 {
+    (x.x * x.x + x.y * x.y).sqrt()
+}
+
 impl RigidSurface for Cylinder {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
         if !all_finite(x) {
             return None;
         }
-        let rho = x.x.hypot(x.y);
+        let rho = radial(x);
         let sign = self.side.sign();
         let distance = sign * (rho - self.radius);
         if distance > max_distance || rho <= SINGULAR_FRACTION * self.radius {
@@ -589,7 +598,7 @@ impl RigidSurface for Torus {
         if !all_finite(x) {
             return None;
         }
-        let rho = x.x.hypot(x.y);
+        let rho = radial(x);
         let q = Vector2::new(rho - self.major_radius, x.z);
         let s = q.norm();
         let sign = self.side.sign();
@@ -704,7 +713,14 @@ impl RigidSurface for PlateWithHole {
         if !all_finite(x) {
             return None;
         }
-        let rho = x.x.hypot(x.y);
+        // The signed distance is never below z (it is z on the face, at
+        // the fillet |(ρ − c_ρ, z + r_f)| − r_f ≥ z, max(z, R_o − ρ) ≥ z at the
+        // wall): the cheap rejection of the nodes lifted off a die or a
+        // blankholder.
+        if x.z > max_distance {
+            return None;
+        }
+        let rho = radial(x);
         let meridian = self.meridian(rho, x.z);
         if meridian.distance > max_distance || rho <= SINGULAR_FRACTION * self.opening_radius {
             return None;
