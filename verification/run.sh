@@ -3,7 +3,9 @@
 #   bash verification/run.sh
 # 1. creates verification/.venv (python3 -m venv) and installs the pinned
 #    requirements.txt into it (again only when requirements.txt changed),
-# 2. builds the binary: cargo build --release --bin ncform (repo root),
+# 2. builds the binary: cargo build --release --bin ncform --tests (repo
+#    root; with the tests, so that the dependencies' features are those of
+#    `cargo test --release` and the binary that run built is reused),
 # 3. runs every verification/verify_*.py suite with --ncform PATH; each
 #    prints PASS/FAIL lines and one "CHECK-SUMMARY passed=N failed=M" line,
 # 4. ends with exactly one line "verification: N passed, N failed" and exits
@@ -34,12 +36,12 @@ failed=0
 
 # --- 2. Build -----------------------------------------------------------------
 bin="$repo/target/release/ncform"
-echo "# cargo build --release --bin ncform"
-if (cd "$repo" && cargo build --release --bin ncform); then
-    echo "PASS [build] cargo build --release --bin ncform succeeds"
+echo "# cargo build --release --bin ncform --tests"
+if (cd "$repo" && cargo build --release --bin ncform --tests); then
+    echo "PASS [build] cargo build --release --bin ncform --tests succeeds"
     passed=$((passed + 1))
 else
-    echo "FAIL [build] cargo build --release --bin ncform succeeds"
+    echo "FAIL [build] cargo build --release --bin ncform --tests succeeds"
     failed=$((failed + 1))
     bin=""   # the suites then fail their checks that need the binary
 fi
