@@ -21,6 +21,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::io_err;
 use super::run::Progress;
 use crate::case::SolverKind;
 use crate::case::forming::{FormingCase, ToolMotion};
@@ -173,10 +174,6 @@ pub struct ExplicitFigures {
     pub threads: usize,
     /// Warnings.
     pub warnings: Vec<String>,
-}
-
-fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
-    format!("{}: {e}", path.display())
 }
 
 /// What the output callbacks feed.
@@ -666,19 +663,13 @@ fn run_explicit(
             row.time = Some(record.time);
             row.increments = Some(record.increment);
             let force = row.tools.first().map_or(0.0, |t| t.force);
-            let detail = format!(
-                "t = {:.4} s, {} increments, KE/IE = {:.2e}",
-                record.time,
-                record.increment,
-                record.energies.kinetic_ratio()
-            );
+            let detail = super::explicit_progress(record);
             progress.update(record.load, force, &detail, 1.0);
             sink.history.push(row);
             sink.states(record.load, snapshot);
         },
     )
     .map_err(|e| format!("{}: {e}", case.source))?;
-    let passes = result.timings.element_pass + result.timings.node_pass;
     Ok(Report {
         status: result.status.clone(),
         unknowns: dofs.n_free(),
@@ -695,11 +686,7 @@ fn run_explicit(
             max_kinetic_ratio: result.max_kinetic_ratio,
             max_relative_balance_error: result.max_relative_balance_error,
             final_energies: result.records.last().map(|r| r.energies),
-            element_cycles_per_second: if passes > 0.0 {
-                result.element_cycles as f64 / passes
-            } else {
-                0.0
-            },
+            element_cycles_per_second: result.element_cycles_per_second(),
             threads: result.threads,
             warnings: result.warnings.clone(),
         }),
@@ -708,17 +695,13 @@ fn run_explicit(
     })
 }
 
+/// The status line of the file headers, in programme fractions.
 fn status_line(status: &RunStatus) -> String {
-    match status {
-        RunStatus::Complete => "status: complete".to_string(),
-        RunStatus::Incomplete {
-            load_reached,
-            load_attempted,
-            reason,
-        } => format!(
-            "status: INCOMPLETE - stopped at programme fraction {load_reached}; the step to {load_attempted} failed: {reason}"
-        ),
-    }
+    super::status_line(
+        status,
+        |load| format!("programme fraction {load}"),
+        |load| load.to_string(),
+    )
 }
 
 /// `history.csv` and `reactions.png`.

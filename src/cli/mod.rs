@@ -7,3 +7,45 @@ pub mod material_check;
 pub mod material_curves;
 pub mod material_eval;
 pub mod run;
+
+use std::path::Path;
+
+use crate::solver::RunStatus;
+use crate::solver::explicit::ExplicitRecord;
+
+/// An I/O error message that names the path.
+fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
+    format!("{}: {e}", path.display())
+}
+
+/// `status: complete`, or where an incomplete run stopped and why, with
+/// the load reached and the load attempted written by `reached` and
+/// `attempted` (the output files' header line).
+fn status_line(
+    status: &RunStatus,
+    reached: impl Fn(f64) -> String,
+    attempted: impl Fn(f64) -> String,
+) -> String {
+    match status {
+        RunStatus::Complete => "status: complete".to_string(),
+        RunStatus::Incomplete {
+            load_reached,
+            load_attempted,
+            reason,
+        } => format!(
+            "status: INCOMPLETE - stopped at {}; the step to {} failed: {reason}",
+            reached(*load_reached),
+            attempted(*load_attempted)
+        ),
+    }
+}
+
+/// The progress detail of an explicit output: time, increments, `KE/IE`.
+fn explicit_progress(record: &ExplicitRecord) -> String {
+    format!(
+        "t = {:.4} s, {} increments, KE/IE = {:.2e}",
+        record.time,
+        record.increment,
+        record.energies.kinetic_ratio()
+    )
+}

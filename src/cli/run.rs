@@ -20,6 +20,8 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use super::io_err;
+
 use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
 use crate::model::Model;
 use crate::post::contour::{ContourMap, write_contour_png};
@@ -239,10 +241,6 @@ impl Progress {
             bar.finish();
         }
     }
-}
-
-fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
-    format!("{}: {e}", path.display())
 }
 
 /// Writes one VTU of the deformed specimen.
@@ -565,12 +563,7 @@ fn run_explicit(
         &times,
         &mut state,
         |record, snapshot| {
-            let detail = format!(
-                "t = {:.4} s, {} increments, KE/IE = {:.2e}",
-                record.time,
-                record.increment,
-                record.energies.kinetic_ratio()
-            );
+            let detail = super::explicit_progress(record);
             progress.update(record.load, record.reaction, &detail, total);
             sink.record(record.load, record.reaction, snapshot.u, |row| {
                 row.time = Some(record.time);
@@ -580,7 +573,6 @@ fn run_explicit(
     )
     .map_err(|e| format!("{}: {e}", case.source))?;
     write_energy(case, sink.out, &result.records, &result.status)?;
-    let passes = result.timings.element_pass + result.timings.node_pass;
     Ok(SolveReport {
         status: result.status.clone(),
         unknowns: dofs.n_free(),
@@ -593,11 +585,7 @@ fn run_explicit(
             density,
             increments: result.increments,
             element_cycles: result.element_cycles,
-            element_cycles_per_second: if passes > 0.0 {
-                result.element_cycles as f64 / passes
-            } else {
-                0.0
-            },
+            element_cycles_per_second: result.element_cycles_per_second(),
             threads: result.threads,
             initial_critical_time_step: result.initial_critical_time_step,
             time_step_range: result.time_step_range,
@@ -637,17 +625,9 @@ fn write_energy(
     )
 }
 
+/// The status line of the file headers, in clamp displacements.
 fn status_line(status: &RunStatus) -> String {
-    match status {
-        RunStatus::Complete => "status: complete".to_string(),
-        RunStatus::Incomplete {
-            load_reached,
-            load_attempted,
-            reason,
-        } => format!(
-            "status: INCOMPLETE - stopped at d = {load_reached} mm; the step to {load_attempted} mm failed: {reason}"
-        ),
-    }
+    super::status_line(status, |d| format!("d = {d} mm"), |d| format!("{d} mm"))
 }
 
 fn write_histories(

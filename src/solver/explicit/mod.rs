@@ -178,6 +178,19 @@ pub struct ExplicitResult {
     pub threads: usize,
 }
 
+impl ExplicitResult {
+    /// Element-cycles per second over the element and node passes
+    /// (`element_cycles / (element + node pass time)`; 0 before any pass).
+    pub fn element_cycles_per_second(&self) -> f64 {
+        let passes = self.timings.element_pass + self.timings.node_pass;
+        if passes > 0.0 {
+            self.element_cycles as f64 / passes
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Why an explicit run could not start.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExplicitError {
