@@ -50,6 +50,8 @@ struct FormingRaw {
     load: Vec<LoadRaw>,
     #[serde(default)]
     probe: Vec<ProbeRaw>,
+    #[serde(default)]
+    zone: Vec<ZoneRaw>,
     gravity: Option<GravityRaw>,
     contact: Option<ContactRaw>,
     output: Option<OutputRaw>,
@@ -153,6 +155,15 @@ struct ProbeRaw {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct ZoneRaw {
+    name: Option<String>,
+    ply: Option<String>,
+    centre: Spanned<Vec<f64>>,
+    size: Option<Spanned<Vec<f64>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct GravityRaw {
     g: Option<Spanned<f64>>,
     direction: Option<Spanned<Vec<f64>>>,
@@ -177,6 +188,7 @@ struct ContactRaw {
 struct OutputRaw {
     states: Option<Spanned<i64>>,
     history: Option<Spanned<i64>>,
+    camera: Option<Spanned<String>>,
 }
 
 // --- the validated case ----------------------------------------------------
@@ -378,6 +390,27 @@ pub struct ProbeSpec {
     pub line: usize,
 }
 
+/// An evaluation zone of a ply (`[[zone]]`): a rectangular window of the
+/// blank in reference coordinates, over which the strain measures are
+/// averaged (`docs/forming.md`, "Zones").
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZoneSpec {
+    /// The ply.
+    pub ply: usize,
+    /// Name.
+    pub name: String,
+    /// Centre `(x, y)` on the blank \[mm\].
+    pub centre: [f64; 2],
+    /// Size `(x, y)` \[mm\].
+    pub size: [f64; 2],
+}
+
+/// The default size of a zone: the paper's 20 × 20 mm windows \[mm\].
+pub const DEFAULT_ZONE_SIZE: [f64; 2] = [20.0, 20.0];
+
+/// How the maps of a forming run look at the plies.
+pub use crate::post::contour::MapView;
+
 /// Gravity.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GravitySpec {
@@ -446,6 +479,10 @@ pub struct FormingCase {
     pub loads: Vec<LoadSpec>,
     /// Node sets whose mean displacement the history records.
     pub probes: Vec<ProbeSpec>,
+    /// Evaluation zones.
+    pub zones: Vec<ZoneSpec>,
+    /// How the PNG maps look at the plies (`output.camera`).
+    pub camera: MapView,
     /// Gravity, if on.
     pub gravity: Option<GravitySpec>,
     /// Contact settings.
@@ -787,6 +824,60 @@ impl FormingCase {
             });
         }
 
+        let mut zones: Vec<ZoneSpec> = Vec::new();
+        for (i, z) in raw.zone.iter().enumerate() {
+            let key = |k: &str| format!("zone[{i}].{k}");
+            let pair = |v: &Spanned<Vec<f64>>, k: &str, positive: bool| {
+                let values = v.get_ref();
+                let ok = values.len() == 2
+                    && values
+                        .iter()
+                        .all(|x| x.is_finite() && (!positive || *x > 0.0));
+                if ok {
+                    Ok([values[0], values[1]])
+                } else {
+                    Err(check.invalid(
+                        check.line_of(v),
+                        &key(k),
+                        format!(
+                            "[{}]",
+                            values
+                                .iter()
+                                .map(|x| x.to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                        if positive {
+                            "two sizes > 0 mm [x, y]"
+                        } else {
+                            "two finite coordinates [x, y] in mm"
+                        },
+                    ))
+                }
+            };
+            let name = z
+                .name
+                .clone()
+                .unwrap_or_else(|| char::from(b'A' + (i % 26) as u8).to_string());
+            if zones.iter().any(|q| q.name == name) {
+                return Err(check.invalid(
+                    check.line_of(&z.centre),
+                    &key("name"),
+                    format!("\"{name}\""),
+                    "a name no other zone has",
+                ));
+            }
+            zones.push(ZoneSpec {
+                ply: ply_index(&z.ply, &key("ply"))?,
+                name,
+                centre: pair(&z.centre, "centre", false)?,
+                size: match &z.size {
+                    None => DEFAULT_ZONE_SIZE,
+                    Some(v) => pair(v, "size", true)?,
+                },
+            });
+        }
+
         let mut contact = ContactSettings::default();
         if let Some(c) = &raw.contact {
             if let Some(v) = &c.offset {
@@ -867,6 +958,14 @@ impl FormingCase {
                 "the ply's areal mass [kg/m²] for the explicit solver (a parameter file has none)",
             ));
         }
+        let camera = match raw.output.as_ref().and_then(|o| o.camera.as_ref()) {
+            None => MapView::Below,
+            Some(c) => check.choice(
+                c,
+                "output.camera",
+                &[("below", MapView::Below), ("above", MapView::Above)],
+            )?,
+        };
         let (states, history_rows) = match &raw.output {
             None => (DEFAULT_STATES, DEFAULT_HISTORY_ROWS),
             Some(o) => (
@@ -888,6 +987,8 @@ impl FormingCase {
             boundaries,
             loads,
             probes,
+            zones,
+            camera,
             gravity,
             contact,
             solver_kind,

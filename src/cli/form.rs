@@ -21,6 +21,10 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::blank::{
+    BlankRow, DicColumns, OutlineState, Readout, ZoneValue, dic_measures, write_forming_history,
+    write_maps, write_outer_contours,
+};
 use super::io_err;
 use super::run::Progress;
 use crate::case::SolverKind;
@@ -83,6 +87,16 @@ pub struct FormingRow {
     /// Time increments so far (explicit).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub increments: Option<usize>,
+    /// The stroke \[mm\]: the displacement of the prescribed tool that
+    /// moves farthest (`λ` without one).
+    pub stroke: f64,
+    /// Per floating tool, its lift: displacement against its direction \[mm\].
+    pub lifts: Vec<f64>,
+    /// Per ply, the draw-in at its edge midpoints and corners \[mm\]
+    /// (`forming.draw_in_points` names them).
+    pub draw_in: Vec<Vec<f64>>,
+    /// Per zone of the case, the means over it.
+    pub zones: Vec<ZoneValue>,
 }
 
 /// The JSON summary of a forming run.
@@ -124,8 +138,25 @@ pub struct FormingSummary {
     pub output_seconds: f64,
     /// Wall time of the whole run \[s\].
     pub wall_seconds: f64,
+    /// What is read on the blanks.
+    pub forming: FormingFigures,
     /// The history.
     pub history: Vec<FormingRow>,
+}
+
+/// What is read on the blanks, at the output states (`docs/forming.md`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FormingFigures {
+    /// The tool whose displacement is the stroke.
+    pub stroke_tool: Option<String>,
+    /// The floating tools whose lift is reported.
+    pub floating_tools: Vec<String>,
+    /// Per ply, its draw-in points: name and reference position \[mm\].
+    pub draw_in_points: Vec<Vec<(String, [f64; 2])>>,
+    /// The zones: name, ply, centre and size \[mm\].
+    pub zones: Vec<(String, String, [f64; 2], [f64; 2])>,
+    /// The history rows at the output states.
+    pub states: Vec<FormingRow>,
 }
 
 /// A ply's size.
@@ -186,6 +217,9 @@ struct Sink<'a> {
     written_states: usize,
     io_error: Option<String>,
     seconds: f64,
+    readout: Readout,
+    outline_states: Vec<OutlineState>,
+    state_rows: Vec<FormingRow>,
 }
 
 impl Sink<'_> {
@@ -239,6 +273,17 @@ impl Sink<'_> {
                 mean.map(|m| m / nodes.len().max(1) as f64)
             })
             .collect();
+        let stroke = self
+            .readout
+            .stroke_tool
+            .map_or(load, |t| snapshot.u[self.built.tools[t].dof]);
+        let lifts = self
+            .built
+            .tools
+            .iter()
+            .filter(|t| matches!(t.spec.motion, ToolMotion::Floating { .. }))
+            .map(|t| -snapshot.u[t.dof])
+            .collect();
         FormingRow {
             load,
             time: None,
@@ -252,12 +297,16 @@ impl Sink<'_> {
             contacts: None,
             residual: None,
             increments: None,
+            stroke,
+            lifts,
+            draw_in: self.readout.draw_in(snapshot.u),
+            zones: self.readout.zones(self.case, self.built, snapshot.u),
         }
     }
 
     /// Writes the VTU files of the state `snapshot` at `load` if it is an
     /// output state.
-    fn states(&mut self, load: f64, snapshot: &Snapshot) {
+    fn states(&mut self, load: f64, snapshot: &Snapshot, row: &FormingRow) {
         let due = self
             .case
             .states
@@ -270,6 +319,16 @@ impl Sink<'_> {
         self.written_states = due;
         let index = due;
         let plies = self.built.plies.len();
+        self.outline_states.push(OutlineState {
+            load,
+            stroke: row.stroke,
+            outlines: self.readout.outlines(snapshot.u),
+        });
+        self.state_rows.push(row.clone());
+        let caption = match self.readout.stroke_tool {
+            Some(t) => format!("{} {:.1} mm", self.built.tools[t].spec.name, row.stroke),
+            None => format!("λ = {load:.3}"),
+        };
         for (t, tool) in self.built.tools.iter().enumerate() {
             let name = format!("tool-{}_{index:04}.vtu", file_stem(&tool.spec.name));
             let path = self.out.join("vtu").join(&name);
@@ -282,16 +341,40 @@ impl Sink<'_> {
                 part: plies + t,
             });
         }
+        let tools = self.built.tools.len();
         for (p, ply) in self.built.plies.iter().enumerate() {
-            let name = format!("{}_{index:04}.vtu", file_stem(&ply.name));
+            let stem = file_stem(&ply.name);
+            let name = format!("{stem}_{index:04}.vtu");
+            let dic_name = format!("{stem}-dic_{index:04}.vtu");
             let path = self.out.join("vtu").join(&name);
-            if let Err(e) = write_ply_vtu(&path, self.case, self.built, p, snapshot, load) {
+            let dic_path = self.out.join("vtu").join(&dic_name);
+            let maps = (
+                self.out.join("maps").join(format!("{stem}_{index:04}.png")),
+                self.out
+                    .join("maps")
+                    .join(format!("{stem}-dic_{index:04}.png")),
+            );
+            let written = write_ply_state(
+                (&path, &dic_path, (&maps.0, &maps.1)),
+                self.case,
+                self.built,
+                p,
+                snapshot,
+                load,
+                &caption,
+            );
+            if let Err(e) = written {
                 self.io_error.get_or_insert(e);
             }
             self.pvd.push(PvdEntry {
                 time: load,
                 file: format!("vtu/{name}"),
                 part: p,
+            });
+            self.pvd.push(PvdEntry {
+                time: load,
+                file: format!("vtu/{dic_name}"),
+                part: plies + tools + p,
             });
         }
     }
@@ -384,18 +467,23 @@ fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> P
     c
 }
 
-/// One ply's VTU at a state.
-fn write_ply_vtu(
-    path: &Path,
+/// One ply at an output state: its VTU (with the image-correlation fields
+/// beside the true ones), the VTU of its projection on the blank plane, and
+/// its maps (`paths`: ply VTU, projection VTU, the two map PNGs).
+fn write_ply_state(
+    paths: (&Path, &Path, (&Path, &Path)),
     case: &FormingCase,
     built: &FormingModel,
     p: usize,
     snapshot: &Snapshot,
     load: f64,
+    caption: &str,
 ) -> Result<(), String> {
+    let (path, dic_path, map_paths) = paths;
     let ply = &built.plies[p];
     let u = snapshot.u;
     let offset = ply.node_offset;
+    let count = ply.mesh.nodes.len();
     let points: Vec<[f64; 3]> = ply
         .mesh
         .nodes
@@ -406,7 +494,7 @@ fn write_ply_vtu(
             [x.x + u[3 * g], x.y + u[3 * g + 1], x.z + u[3 * g + 2]]
         })
         .collect();
-    let displacement: Vec<[f64; 3]> = (0..ply.mesh.nodes.len())
+    let displacement: Vec<[f64; 3]> = (0..count)
         .map(|n| {
             let g = offset + n;
             [u[3 * g], u[3 * g + 1], u[3 * g + 2]]
@@ -419,8 +507,33 @@ fn write_ply_vtu(
             ply.mesh.element_label(e)
         )
     })?;
+    let dic = dic_measures(built, p, u);
+    let dic_columns = DicColumns::new(&dic);
+    let dic_fields = || {
+        vec![
+            Field {
+                name: "dic_shear_angle_deg",
+                data: FieldData::Scalar(&dic_columns.shear_angle_deg),
+            },
+            Field {
+                name: "dic_E22",
+                data: FieldData::Scalar(&dic_columns.e22),
+            },
+            Field {
+                name: "dic_E_perp",
+                data: FieldData::Scalar(&dic_columns.e_perp),
+            },
+            Field {
+                name: "dic_valid",
+                data: FieldData::Int(&dic_columns.valid),
+            },
+        ]
+    };
     let columns = FieldColumns::new(&fields);
     let contact = ply_contact(built, p, snapshot.model);
+    let mut cell_fields = columns.cell_fields();
+    cell_fields.extend(dic_fields());
+    let dic_note = "dic_*: gamma, E22, E_perp recomputed on the mesh projected on the blank plane (2D image correlation, docs/forming.md); 0 where dic_valid = 0 (projected triangle turned over)";
     let piece = VtuPiece {
         points: &points,
         triangles: &ply.mesh.triangles,
@@ -450,7 +563,7 @@ fn write_ply_vtu(
                 data: FieldData::Scalar(&contact.slip),
             },
         ],
-        cell_fields: columns.cell_fields(),
+        cell_fields,
         comment: vec![
             format!(
                 "ncform: {} ({}), ply \"{}\"",
@@ -460,9 +573,37 @@ fn write_ply_vtu(
             format!("units: {UNITS}; E22 = I8-1, E_perp = I11-1 (paper Section 4)"),
             "S: second Piola-Kirchhoff stress [MPa] in the reference global x-y axes (xx, yy, xy)"
                 .into(),
+            dic_note.into(),
         ],
     };
-    write_vtu(path, &piece).map_err(|e| io_err(path, e))
+    write_vtu(path, &piece).map_err(|e| io_err(path, e))?;
+    let projected: Vec<[f64; 3]> = ply
+        .mesh
+        .nodes
+        .iter()
+        .zip(&points)
+        .map(|(x, q)| [q[0], q[1], x.z])
+        .collect();
+    let dic_piece = VtuPiece {
+        points: &projected,
+        triangles: &ply.mesh.triangles,
+        point_fields: vec![Field {
+            name: "displacement",
+            data: FieldData::Vector3(&displacement),
+        }],
+        cell_fields: dic_fields(),
+        comment: vec![
+            format!(
+                "ncform: {} ({}), ply \"{}\", projected on the blank plane",
+                case.title, case.source, ply.name
+            ),
+            format!("programme fraction {load}"),
+            format!("units: {UNITS}"),
+            dic_note.into(),
+        ],
+    };
+    write_vtu(dic_path, &dic_piece).map_err(|e| io_err(dic_path, e))?;
+    write_maps(case, built, p, u, &fields, &dic, map_paths, caption)
 }
 
 /// Runs a forming case and writes its outputs into `out`.
@@ -476,7 +617,10 @@ pub fn run_forming(
 ) -> Result<FormingSummary, String> {
     let wall = Instant::now();
     let mut built = case.build()?;
-    std::fs::create_dir_all(out.join("vtu")).map_err(|e| io_err(out, e))?;
+    for dir in ["vtu", "maps"] {
+        std::fs::create_dir_all(out.join(dir)).map_err(|e| io_err(&out.join(dir), e))?;
+    }
+    let readout = Readout::new(case, &built)?;
     let dofs = built.dofs();
     let mut model = std::mem::replace(&mut built.model, crate::model::Model::new(0));
     let mut sink = Sink {
@@ -488,6 +632,9 @@ pub fn run_forming(
         written_states: 0,
         io_error: None,
         seconds: 0.0,
+        readout,
+        outline_states: Vec::new(),
+        state_rows: Vec::new(),
     };
     let report = match case.solver_kind {
         SolverKind::QuasiStatic => {
@@ -505,11 +652,45 @@ pub fn run_forming(
         &sink.pvd,
         &[
             format!("ncform: {} ({})", case.title, case.source),
-            "time = programme fraction (0 to 1); parts: the plies, then the tools; units: mm, N, MPa".into(),
+            "time = programme fraction (0 to 1); parts: the plies, then the tools, then each ply projected on the blank plane (2D image-correlation view); units: mm, N, MPa".into(),
         ],
     )
     .map_err(|e| io_err(&out.join("forming.pvd"), e))?;
     write_history(case, &built, out, &sink.history, &report.status)?;
+    let header_status = status_line(&report.status);
+    let stroke_label = sink.readout.stroke_tool.map_or_else(
+        || "programme fraction".to_string(),
+        |t| format!("{} displacement", built.tools[t].spec.name),
+    );
+    write_outer_contours(
+        case,
+        &built,
+        &sink.readout,
+        &sink.outline_states,
+        out,
+        &header_status,
+        &stroke_label,
+    )?;
+    let blank_rows: Vec<BlankRow> = sink
+        .history
+        .iter()
+        .map(|h| BlankRow {
+            stroke: h.stroke,
+            force: sink.readout.stroke_tool.map_or(0.0, |t| h.tools[t].force),
+            lifts: h.lifts.clone(),
+            draw_in: h.draw_in.clone(),
+            zones: h.zones.clone(),
+        })
+        .collect();
+    write_forming_history(
+        case,
+        &built,
+        &sink.readout,
+        &blank_rows,
+        out,
+        &header_status,
+        &stroke_label,
+    )?;
     if let Some(records) = &report.records {
         write_energy(case, out, records, &report.status)?;
     }
@@ -564,6 +745,42 @@ pub fn run_forming(
         term_seconds: report.term_seconds,
         output_seconds: sink.seconds,
         wall_seconds: wall.elapsed().as_secs_f64(),
+        forming: FormingFigures {
+            stroke_tool: sink
+                .readout
+                .stroke_tool
+                .map(|t| built.tools[t].spec.name.clone()),
+            floating_tools: built
+                .tools
+                .iter()
+                .filter(|t| matches!(t.spec.motion, ToolMotion::Floating { .. }))
+                .map(|t| t.spec.name.clone())
+                .collect(),
+            draw_in_points: sink
+                .readout
+                .points()
+                .iter()
+                .map(|points| {
+                    points
+                        .iter()
+                        .map(|p| (p.name.clone(), p.reference))
+                        .collect()
+                })
+                .collect(),
+            zones: case
+                .zones
+                .iter()
+                .map(|z| {
+                    (
+                        z.name.clone(),
+                        built.plies[z.ply].name.clone(),
+                        z.centre,
+                        z.size,
+                    )
+                })
+                .collect(),
+            states: std::mem::take(&mut sink.state_rows),
+        },
         history: std::mem::take(&mut sink.history),
     };
     let path = out.join("summary.json");
@@ -617,8 +834,8 @@ fn run_quasi_static(
                 record.step, record.iterations, record.augmentations
             );
             progress.update(record.load, force, &detail, 1.0);
+            sink.states(record.load, snapshot, &row);
             sink.history.push(row);
-            sink.states(record.load, snapshot);
             sink.seconds += clock.elapsed().as_secs_f64();
         },
     )?;
@@ -665,8 +882,8 @@ fn run_explicit(
             let force = row.tools.first().map_or(0.0, |t| t.force);
             let detail = super::explicit_progress(record);
             progress.update(record.load, force, &detail, 1.0);
+            sink.states(record.load, snapshot, &row);
             sink.history.push(row);
-            sink.states(record.load, snapshot);
         },
     )
     .map_err(|e| format!("{}: {e}", case.source))?;

@@ -1,6 +1,7 @@
 //! Command implementations behind the `ncform` binary, written over
 //! readers and writers so tests drive them without a process.
 
+mod blank;
 mod energy;
 pub mod form;
 pub mod material_check;

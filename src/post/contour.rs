@@ -464,6 +464,53 @@ fn bar_image(frame: &MapFrame) -> Vec<u8> {
 /// A message naming the file when a map's data are inconsistent (see
 /// [`contour_layout`]) or drawing or writing fails.
 pub fn write_contour_png(path: &Path, maps: &[ContourMap], size: (u32, u32)) -> Result<(), String> {
+    write_contour_png_viewed(path, maps, size, MapView::Above)
+}
+
+/// Which way a map of a sheet in the xy-plane is looked at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MapView {
+    /// From +z: x to the right, y up.
+    Above,
+    /// From −z, as a camera under a transparent die sees the sheet: the
+    /// picture is mirrored, x to the left, y up (the x tick labels keep the
+    /// true coordinates).
+    Below,
+}
+
+/// [`write_contour_png`] with the maps seen from `view`. Seen from below,
+/// the points are mirrored in x before the layout (so
+/// [`contour_layout`] of the mirrored maps tells where things land) and the
+/// x axis is labelled with the true coordinates.
+///
+/// # Errors
+/// As [`write_contour_png`].
+pub fn write_contour_png_viewed(
+    path: &Path,
+    maps: &[ContourMap],
+    size: (u32, u32),
+    view: MapView,
+) -> Result<(), String> {
+    let mirrored_points: Vec<Vec<[f64; 2]>>;
+    let mirrored: Vec<ContourMap>;
+    let maps = match view {
+        MapView::Above => maps,
+        MapView::Below => {
+            mirrored_points = maps
+                .iter()
+                .map(|m| m.points.iter().map(|p| [-p[0], p[1]]).collect())
+                .collect();
+            mirrored = maps
+                .iter()
+                .zip(&mirrored_points)
+                .map(|(m, points)| ContourMap {
+                    points,
+                    ..m.clone()
+                })
+                .collect();
+            &mirrored
+        }
+    };
     ensure_font();
     let frames = contour_layout(maps, size).map_err(|e| format!("{}: {e}", path.display()))?;
     let fail =
@@ -473,7 +520,7 @@ pub fn write_contour_png(path: &Path, maps: &[ContourMap], size: (u32, u32)) -> 
     for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {
         let px0 = k as i32 * size.0 as i32 / maps.len() as i32;
         let px1 = (k as i32 + 1) * size.0 as i32 / maps.len() as i32;
-        draw_map(&root, map, frame, (px0, px1)).map_err(|e| fail(&e))?;
+        draw_map(&root, map, frame, (px0, px1), view).map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())
@@ -484,7 +531,9 @@ fn draw_map<DB: DrawingBackend>(
     map: &ContourMap,
     frame: &MapFrame,
     (px0, px1): (i32, i32),
+    view: MapView,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let x_sign = if view == MapView::Below { -1.0 } else { 1.0 };
     // Title, centred over the plot just above it.
     let (pw, ph) = (frame.plot_size.0 as i32, frame.plot_size.1 as i32);
     let (x0, y0) = frame.plot_origin;
@@ -523,9 +572,13 @@ fn draw_map<DB: DrawingBackend>(
         .disable_mesh()
         .x_labels(((pw / 70) as usize).max(2))
         .y_labels(((ph / 80) as usize).max(2))
-        .x_label_formatter(&|v| format_axis(*v, frame.x_range.1 - frame.x_range.0))
+        .x_label_formatter(&|v| format_axis(x_sign * *v + 0.0, frame.x_range.1 - frame.x_range.0))
         .y_label_formatter(&|v| format_axis(*v, frame.y_range.1 - frame.y_range.0))
-        .x_desc("x [mm]")
+        .x_desc(if view == MapView::Below {
+            "x [mm] (seen from below)"
+        } else {
+            "x [mm]"
+        })
         .y_desc("y [mm]")
         .label_style(("sans-serif", FONT_TICKS))
         .axis_desc_style(("sans-serif", FONT_DESC))

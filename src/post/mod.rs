@@ -3,5 +3,6 @@
 pub mod contour;
 pub mod csv;
 pub mod fields;
+pub mod forming;
 pub mod plot;
 pub mod vtu;
