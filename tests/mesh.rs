@@ -927,3 +927,60 @@ fn unknown_set_lists_available_names() {
         &["element set", "fabric", "available element sets: all"],
     );
 }
+
+/// Requirement: the mirrored pattern at 0° and 90° gives a mesh that is
+/// mirror-symmetric about both centre lines (every triangle's mirror image
+/// is a triangle of the mesh, exactly: the node positions are mirrored
+/// sums of the same grid values) with every triangle's edges along the
+/// rovings and the stitching (cell sides), and is refused at other angles.
+#[test]
+fn mirrored_pattern_is_symmetric_about_both_centre_lines() {
+    for theta in [0.0, 90.0] {
+        let g = generate(
+            theta,
+            GridResolution::Counts { nx: 6, ny: 4 },
+            GridPattern::Mirrored,
+        );
+        let m = &g.mesh;
+        m.check().expect("generated mesh passes check");
+        assert_eq!(m.triangles.len(), 48);
+        assert!(g.edge_deviation_deg < 1e-9);
+        let key = |x: f64, y: f64| ((x * 1e6).round() as i64, (y * 1e6).round() as i64);
+        let triangle_set: std::collections::BTreeSet<Vec<(i64, i64)>> = m
+            .triangles
+            .iter()
+            .map(|t| {
+                let mut v: Vec<_> = t.iter().map(|&n| key(m.nodes[n].x, m.nodes[n].y)).collect();
+                v.sort_unstable();
+                v
+            })
+            .collect();
+        for mirror in [
+            |x: f64, y: f64| (100.0 - x, y),
+            |x: f64, y: f64| (x, 300.0 - y),
+        ] {
+            for t in &m.triangles {
+                let mut v: Vec<_> = t
+                    .iter()
+                    .map(|&n| {
+                        let (x, y) = mirror(m.nodes[n].x, m.nodes[n].y);
+                        key(x, y)
+                    })
+                    .collect();
+                v.sort_unstable();
+                assert!(
+                    triangle_set.contains(&v),
+                    "mirror of {t:?} missing at {theta}°"
+                );
+            }
+        }
+    }
+    let refused = ncform::mesh::generate::oat_specimen(&ncform::mesh::generate::OatSpecimen {
+        width: 100.0,
+        length: 300.0,
+        bias_angle_deg: 45.0,
+        resolution: GridResolution::Counts { nx: 6, ny: 4 },
+        pattern: GridPattern::Mirrored,
+    });
+    assert!(refused.is_err());
+}

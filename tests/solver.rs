@@ -620,6 +620,7 @@ fn stiff_fibres_approach_the_pin_jointed_net() {
                     f > 5.0 * expected,
                     "no locking at d = {d}: {f} vs {expected}"
                 ),
+                GridPattern::Mirrored => unreachable!("not at 45°"),
             }
         }
     }

@@ -74,6 +74,7 @@ pub(super) struct ExplicitRaw {
     pub(super) mass_scaling_time_step: Option<Spanned<f64>>,
     pub(super) damping: Option<Spanned<f64>>,
     pub(super) kinetic_energy_warning: Option<Spanned<f64>>,
+    pub(super) energy_balance_warning: Option<Spanned<f64>>,
     pub(super) history_interval: Option<Spanned<f64>>,
     pub(super) threads: Option<Spanned<i64>>,
 }
@@ -95,6 +96,8 @@ pub struct ExplicitSettings {
     pub damping: f64,
     /// KE/IE warning level.
     pub kinetic_energy_warning: f64,
+    /// Energy-balance warning level.
+    pub energy_balance_warning: f64,
     /// Clamp displacement between history rows \[mm\].
     pub history_interval: f64,
     /// Worker threads (0: all).
@@ -138,6 +141,7 @@ impl ExplicitSettings {
                 &[
                     ("smooth-step", Amplitude::SmoothStep),
                     ("linear", Amplitude::Linear),
+                    ("quadratic", Amplitude::Quadratic),
                 ],
             )?,
         };
@@ -184,6 +188,10 @@ impl ExplicitSettings {
             None => 0.01,
             Some(v) => positive(v, "explicit.kinetic_energy_warning", "a fraction > 0")?,
         };
+        let energy_balance_warning = match &raw.energy_balance_warning {
+            None => 0.01,
+            Some(v) => positive(v, "explicit.energy_balance_warning", "a fraction > 0")?,
+        };
         let history_interval = match &raw.history_interval {
             None => displacement / DEFAULT_HISTORY_ROWS,
             Some(v) => check.range(
@@ -205,6 +213,7 @@ impl ExplicitSettings {
             mass_scaling_time_step,
             damping,
             kinetic_energy_warning,
+            energy_balance_warning,
             history_interval,
             threads,
         })
@@ -219,6 +228,7 @@ impl ExplicitSettings {
             mass_scaling_target: self.mass_scaling_time_step,
             damping: self.damping,
             kinetic_energy_warning: self.kinetic_energy_warning,
+            energy_balance_warning: self.energy_balance_warning,
             threads: self.threads,
         }
     }

@@ -95,6 +95,7 @@ struct PlyMeshRaw {
     centre: Option<Spanned<Vec<f64>>>,
     element_size: Option<Spanned<f64>>,
     cells: Option<Spanned<Vec<i64>>>,
+    pattern: Option<Spanned<String>>,
     radius: Option<Spanned<f64>>,
     width: Option<Spanned<f64>>,
     wrap_angle_deg: Option<Spanned<f64>>,
@@ -205,6 +206,8 @@ pub enum PlyMesh {
         centre: Vector3<f64>,
         /// Element size or cell counts.
         resolution: crate::mesh::generate::GridResolution,
+        /// How the cells are cut into triangles.
+        pattern: crate::mesh::generate::GridPattern,
     },
     /// A flat circular membrane of radius `radius` centred at `centre`.
     Disk {
@@ -1106,10 +1109,29 @@ fn ply_mesh(
                     ));
                 }
             };
+            let pattern = match &m.pattern {
+                None => crate::mesh::generate::GridPattern::RovingDiagonal,
+                Some(p) => check.choice(
+                    p,
+                    &key("pattern"),
+                    &[
+                        (
+                            "roving-diagonal",
+                            crate::mesh::generate::GridPattern::RovingDiagonal,
+                        ),
+                        (
+                            "both-diagonals",
+                            crate::mesh::generate::GridPattern::BothDiagonals,
+                        ),
+                        ("mirrored", crate::mesh::generate::GridPattern::Mirrored),
+                    ],
+                )?,
+            };
             PlyMesh::Rectangle {
                 size,
                 centre,
                 resolution,
+                pattern,
             }
         }
         Kind::Disk => PlyMesh::Disk {

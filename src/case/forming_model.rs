@@ -15,7 +15,7 @@ use crate::contact::{
 use crate::element::BendingStiffness;
 use crate::material::{FibreFrame, MembraneMaterial, Sym2};
 use crate::mesh::Mesh;
-use crate::mesh::generate::{GridPattern, OatSpecimen, oat_specimen};
+use crate::mesh::generate::{OatSpecimen, oat_specimen};
 use crate::model::{
     BendingTerm, ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model,
     RigidBodyMass, ToolContact,
@@ -196,6 +196,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
             size,
             centre,
             resolution,
+            pattern,
         } => {
             // The generator's rovings make the angle θ with y: θ = 90° − α,
             // taken into (−90°, 90°] (rovings are lines).
@@ -209,7 +210,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                 length: size[1],
                 bias_angle_deg: theta,
                 resolution: *resolution,
-                pattern: GridPattern::RovingDiagonal,
+                pattern: *pattern,
             })
             .map_err(|e| context(&e))?
             .mesh;

@@ -223,6 +223,15 @@ struct Sink<'a> {
 }
 
 impl Sink<'_> {
+    /// The force of the stroke tool in `row` (of the first tool without
+    /// one), for the progress line.
+    fn stroke_force(&self, row: &FormingRow) -> f64 {
+        self.readout
+            .stroke_tool
+            .or(if row.tools.is_empty() { None } else { Some(0) })
+            .map_or(0.0, |t| row.tools[t].force)
+    }
+
     /// A history row at `load` from the state `snapshot`.
     fn row(&self, load: f64, snapshot: &Snapshot) -> FormingRow {
         let tools = self
@@ -828,7 +837,7 @@ fn run_quasi_static(
                 row.multiplier_change = Some(c.multiplier_change);
                 row.contacts = Some((c.active, c.slipping));
             }
-            let force = row.tools.first().map_or(0.0, |t| t.force);
+            let force = sink.stroke_force(&row);
             let detail = format!(
                 "step {}, {} iterations, {} augmentations",
                 record.step, record.iterations, record.augmentations
@@ -879,7 +888,7 @@ fn run_explicit(
             let mut row = sink.row(record.load, snapshot);
             row.time = Some(record.time);
             row.increments = Some(record.increment);
-            let force = row.tools.first().map_or(0.0, |t| t.force);
+            let force = sink.stroke_force(&row);
             let detail = super::explicit_progress(record);
             progress.update(record.load, force, &detail, 1.0);
             sink.states(record.load, snapshot, &row);

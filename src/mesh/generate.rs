@@ -33,6 +33,13 @@ pub enum GridPattern {
     /// node. At ±45° with square cells the edges follow both the rovings and
     /// the stitching. Needs 0 < |θ| < 90°.
     BothDiagonals,
+    /// Two triangles per cell, split along the diagonal that points away
+    /// from the rectangle's centre (`/` in the cells right-above and
+    /// left-below the centre, `\` in the others), so that the mesh is
+    /// mirror-symmetric about both centre lines when both counts are even.
+    /// Needs θ = 0° or ±90° (the cell sides are then the rovings and the
+    /// stitching).
+    Mirrored,
 }
 
 /// How fine the grid is.
@@ -114,7 +121,7 @@ pub fn oat_specimen(spec: &OatSpecimen) -> Result<GeneratedMesh, MeshError> {
         GridResolution::ElementSize(h) => choose_counts(spec.width, spec.length, theta, h)?,
     };
     let per_cell = match spec.pattern {
-        GridPattern::RovingDiagonal => 2,
+        GridPattern::RovingDiagonal | GridPattern::Mirrored => 2,
         GridPattern::BothDiagonals => 4,
     };
     let triangles = nx
@@ -180,6 +187,15 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
             value: format!("BothDiagonals at {theta}°"),
             expected: "RovingDiagonal at 0° and ±90° (its cell sides already follow the \
                        rovings and the stitching; the diagonals would not)"
+                .to_string(),
+        });
+    }
+    if spec.pattern == GridPattern::Mirrored && !(theta == 0.0 || theta.abs() == 90.0) {
+        return Err(MeshError::InvalidSpec {
+            parameter: "pattern",
+            value: format!("Mirrored at {theta}°"),
+            expected: "0° or ±90° (elsewhere only the roving diagonal keeps an edge of every \
+                       triangle along the rovings)"
                 .to_string(),
         });
     }
@@ -295,6 +311,17 @@ fn build(spec: &OatSpecimen, nx: usize, ny: usize, a0: Vector3<f64>) -> Mesh {
                 triangles.push([n10, n11, c]);
                 triangles.push([n11, n01, c]);
                 triangles.push([n01, n00, c]);
+            } else if spec.pattern == GridPattern::Mirrored {
+                // Cell centre relative to the grid centre, in half cells.
+                let (ci, cj) = (2 * i + 1, 2 * j + 1);
+                let away_slash = (ci > nx) == (cj > ny);
+                if away_slash {
+                    triangles.push([n00, n10, n11]);
+                    triangles.push([n00, n11, n01]);
+                } else {
+                    triangles.push([n00, n10, n01]);
+                    triangles.push([n10, n11, n01]);
+                }
             } else if spec.bias_angle_deg >= 0.0 {
                 triangles.push([n00, n10, n11]);
                 triangles.push([n00, n11, n01]);
@@ -312,10 +339,10 @@ fn build(spec: &OatSpecimen, nx: usize, ny: usize, a0: Vector3<f64>) -> Mesh {
     node_sets.insert("all".to_string(), (0..nodes.len()).collect());
     let mut element_sets = BTreeMap::new();
     element_sets.insert("all".to_string(), (0..triangles.len()).collect());
-    let pattern = if both {
-        "both diagonals"
-    } else {
-        "roving diagonal"
+    let pattern = match spec.pattern {
+        GridPattern::BothDiagonals => "both diagonals",
+        GridPattern::RovingDiagonal => "roving diagonal",
+        GridPattern::Mirrored => "mirrored diagonals",
     };
     Mesh {
         node_labels: (1..=nodes.len() as i64).collect(),

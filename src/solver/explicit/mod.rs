@@ -510,6 +510,15 @@ fn integrate(
             reported.external_work = driven_work + reported.load_work;
             reported.damping = damping_energy + half_step_damping;
             reported.balance(initial_energy);
+            if reported.relative_balance_error > params.energy_balance_warning
+                && max_balance <= params.energy_balance_warning
+            {
+                warnings.push(format!(
+                    "energy balance: the error is {:.2} % of the largest energy at load {load:.4} (t = {time:.4e} s), above the {:.2} % warning level; lower the time step (safety_factor) or the contact stiffness",
+                    100.0 * reported.relative_balance_error,
+                    100.0 * params.energy_balance_warning
+                ));
+            }
             max_balance = max_balance.max(reported.relative_balance_error);
             if load.abs() >= ke_check_from && final_load != 0.0 {
                 let ratio = reported.kinetic_ratio();

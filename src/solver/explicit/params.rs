@@ -12,6 +12,11 @@ pub enum Amplitude {
     SmoothStep,
     /// `shape(τ) = τ`: constant rate, with a velocity jump at the start.
     Linear,
+    /// `shape(τ) = τ²`: constant acceleration from rest, the rate growing
+    /// as `√λ` to twice the mean at the end — slow early, where the
+    /// internal energy of a forming run is still small against the kinetic
+    /// energy of the material set in motion (`docs/forming.md`).
+    Quadratic,
 }
 
 impl Amplitude {
@@ -21,6 +26,7 @@ impl Amplitude {
         match self {
             Amplitude::SmoothStep => tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau)),
             Amplitude::Linear => tau,
+            Amplitude::Quadratic => tau * tau,
         }
     }
 
@@ -30,6 +36,7 @@ impl Amplitude {
         let fraction = fraction.clamp(0.0, 1.0);
         match self {
             Amplitude::Linear => fraction,
+            Amplitude::Quadratic => fraction.sqrt(),
             Amplitude::SmoothStep => {
                 let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
                 for _ in 0..80 {
@@ -50,6 +57,7 @@ impl Amplitude {
         match self {
             Amplitude::SmoothStep => "smooth-step",
             Amplitude::Linear => "linear",
+            Amplitude::Quadratic => "quadratic",
         }
     }
 }
@@ -94,6 +102,9 @@ pub struct ExplicitParameters {
     /// Warn when the kinetic energy exceeds this fraction of the internal
     /// energy (checked once `λ` passes 10 % of its final value).
     pub kinetic_energy_warning: f64,
+    /// Warn when the relative energy-balance error (against the largest
+    /// energy of the balance, normally the external work) exceeds this.
+    pub energy_balance_warning: f64,
     /// Worker threads; 0 takes rayon's default (all cores, or
     /// `RAYON_NUM_THREADS`). Results do not depend on it.
     pub threads: usize,
@@ -101,7 +112,8 @@ pub struct ExplicitParameters {
 
 impl ExplicitParameters {
     /// Defaults for a run of duration `duration` \[s\]: smooth step, safety factor 0.9 updated every 100 steps, no
-    /// mass scaling, no damping, warning at KE > 1 % of IE, all cores.
+    /// mass scaling, no damping, warnings at KE > 1 % of IE and at an
+    /// energy-balance error above 1 %, all cores.
     pub fn new(duration: f64) -> Self {
         Self {
             duration,
@@ -113,6 +125,7 @@ impl ExplicitParameters {
             mass_scaling_target: None,
             damping: 0.0,
             kinetic_energy_warning: 0.01,
+            energy_balance_warning: 0.01,
             threads: 0,
         }
     }
@@ -167,6 +180,7 @@ impl ExplicitParameters {
             });
         }
         positive("kinetic_energy_warning", self.kinetic_energy_warning)?;
+        positive("energy_balance_warning", self.energy_balance_warning)?;
         Ok(())
     }
 

@@ -1,0 +1,155 @@
+//! The hemisphere forming bench (`docs/forming.md`), coarse: the shipped
+//! cases `cases/hemisphere-0.toml` and `cases/hemisphere-45.toml` with a
+//! coarser blank, run through the same code path as `ncform run`. The
+//! paper-size runs are in `verification/` and `docs/benchmarks.md`.
+//!
+//! Each test names the requirement it checks and where its tolerance comes
+//! from.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use ncform::case::forming::FormingCase;
+use ncform::cli::form::{FormingSummary, run_forming};
+use ncform::cli::run::Progress;
+use ncform::solver::RunStatus;
+use tempfile::TempDir;
+
+/// Cells per side of the coarse blank (the shipped case has 84).
+const COARSE_CELLS: usize = 20;
+
+fn cases_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("cases")
+}
+
+/// The shipped case `name` with a `cells × cells` blank and the edits.
+fn coarse(name: &str, cells: usize, edits: &[(&str, &str)]) -> FormingCase {
+    let mut text = fs::read_to_string(cases_dir().join(name)).unwrap();
+    let mut all = vec![(
+        "cells = [84, 84]".to_string(),
+        format!("cells = [{cells}, {cells}]"),
+    )];
+    all.extend(edits.iter().map(|(a, b)| (a.to_string(), b.to_string())));
+    for (from, to) in &all {
+        assert!(text.contains(from.as_str()), "`{from}` not in {name}");
+        text = text.replacen(from.as_str(), to, 1);
+    }
+    FormingCase::from_toml_str(&text, name, &cases_dir()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn run(case: &FormingCase, out: &Path) -> FormingSummary {
+    let summary = run_forming(case, out, Progress::Quiet).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(summary.status, RunStatus::Complete, "{}", case.title);
+    summary
+}
+
+/// The outer contour of `outer_contour.csv`: reference and final
+/// positions per boundary node.
+fn final_contour(out: &Path) -> Vec<([f64; 2], [f64; 2])> {
+    let text = fs::read_to_string(out.join("outer_contour.csv")).unwrap();
+    let mut rows = Vec::new();
+    for line in text.lines().filter(|l| !l.starts_with('#')).skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let n = v.len();
+        rows.push(([v[2], v[3]], [v[n - 2], v[n - 1]]));
+    }
+    rows
+}
+
+/// The largest distance between the final position of a boundary node and
+/// the mirror image of the final position of the node at its mirrored
+/// reference position, over the nodes whose mirror is a node.
+fn mirror_deviation(contour: &[([f64; 2], [f64; 2])], mirror: fn([f64; 2]) -> [f64; 2]) -> f64 {
+    let mut worst: f64 = 0.0;
+    let mut matched = 0;
+    for (reference, formed) in contour {
+        let target = mirror(*reference);
+        if let Some((_, other)) = contour
+            .iter()
+            .find(|(r, _)| (r[0] - target[0]).abs() < 1e-6 && (r[1] - target[1]).abs() < 1e-6)
+        {
+            let image = mirror(*other);
+            worst = worst.max((image[0] - formed[0]).hypot(image[1] - formed[1]));
+            matched += 1;
+        }
+    }
+    assert!(
+        matched >= contour.len() / 2,
+        "{matched} of {} nodes mirrored",
+        contour.len()
+    );
+    worst
+}
+
+/// Requirement: the explicit [0°] run is quasi-static and balanced — the
+/// kinetic energy below 5 % of the internal energy from 10 % of the stroke
+/// on and the energy-balance error below 1 % (the limits, which the
+/// case's warning levels also use) — and no warning is raised; its outer
+/// contour is mirror-symmetric about both blank axes within 1 mm (the
+/// issue's limit; the bench is symmetric, the mesh's cut diagonals are not,
+/// so the deviation measures the mesh's bias); the draw-in is positive at
+/// every edge midpoint and corner, and larger at the midpoints (the
+/// blank's corners are held in the flange) — and the written outputs exist.
+#[test]
+fn hemisphere_0_explicit_is_quasi_static_balanced_and_symmetric() {
+    let case = coarse("hemisphere-0.toml", COARSE_CELLS, &[]);
+    let out = TempDir::new().unwrap();
+    let summary = run(&case, out.path());
+    let explicit = summary.explicit.as_ref().unwrap();
+    assert!(
+        explicit.max_kinetic_ratio < 0.05,
+        "KE/IE {}",
+        explicit.max_kinetic_ratio
+    );
+    assert!(
+        explicit.max_relative_balance_error < 0.01,
+        "balance {}",
+        explicit.max_relative_balance_error
+    );
+    assert!(explicit.warnings.is_empty(), "{:?}", explicit.warnings);
+    let contour = final_contour(out.path());
+    let about_x = mirror_deviation(&contour, |p| [p[0], -p[1]]);
+    let about_y = mirror_deviation(&contour, |p| [-p[0], p[1]]);
+    assert!(about_x < 1.0 && about_y < 1.0, "{about_x} {about_y}");
+    let last = summary.forming.states.last().unwrap();
+    let draw_in = &last.draw_in[0];
+    for d in draw_in {
+        assert!(*d > 0.0, "{draw_in:?}");
+    }
+    assert!(
+        draw_in[..4]
+            .iter()
+            .all(|m| draw_in[4..].iter().all(|c| m > c)),
+        "{draw_in:?}"
+    );
+    for file in [
+        "forming.csv",
+        "forming.png",
+        "outer_contour.csv",
+        "outer_contour.png",
+        "maps/ply_0005.png",
+        "maps/ply-dic_0005.png",
+        "vtu/ply-dic_0005.vtu",
+        "energy.csv",
+        "summary.json",
+    ] {
+        assert!(out.path().join(file).exists(), "{file}");
+    }
+    let header = fs::read_to_string(out.path().join("forming.csv")).unwrap();
+    assert!(header.lines().any(|l| l.starts_with("# units: mm, N")));
+}
+
+/// Requirement: the [45°] contour is mirror-symmetric about the rovings'
+/// diagonal x = y within 1 mm (the limit; the mesh, cut along that
+/// diagonal, has the symmetry too, so only round-off and the explicit
+/// dynamics' growth of asymmetry remain).
+#[test]
+fn hemisphere_45_explicit_contour_is_symmetric_about_the_rovings() {
+    let case = coarse("hemisphere-45.toml", COARSE_CELLS, &[]);
+    let out = TempDir::new().unwrap();
+    let summary = run(&case, out.path());
+    assert!(summary.explicit.as_ref().unwrap().max_kinetic_ratio < 0.05);
+    let contour = final_contour(out.path());
+    let about_diagonal = mirror_deviation(&contour, |p| [p[1], p[0]]);
+    assert!(about_diagonal < 1.0, "{about_diagonal}");
+}
