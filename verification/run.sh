@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Independent verification suite of ncform. Run from anywhere:
-#   bash verification/run.sh
+#   bash verification/run.sh          # the suites verify_*.py (CI)
+#   bash verification/run.sh --full   # and the paper-size full_*.py (long)
 # 1. creates verification/.venv (python3 -m venv) and installs the pinned
 #    requirements.txt into it (again only when requirements.txt changed),
 # 2. builds the binary: cargo build --release --bin ncform --tests (repo
@@ -12,6 +13,11 @@
 #    non-zero if any check failed (the build counts as one check; a suite that
 #    crashes without its summary line counts as one failed check).
 set -euo pipefail
+
+full=0
+if [ "${1:-}" = "--full" ]; then
+    full=1
+fi
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 repo="$(cd "$here/.." && pwd)"
@@ -48,7 +54,11 @@ fi
 
 # --- 3. Suites ----------------------------------------------------------------
 shopt -s nullglob
-for suite in "$here"/verify_*.py; do
+suites=("$here"/verify_*.py)
+if [ "$full" -eq 1 ]; then
+    suites+=("$here"/full_*.py)
+fi
+for suite in "${suites[@]}"; do
     name="$(basename "$suite")"
     echo "# running $name"
     log="$(mktemp)"

@@ -1,0 +1,184 @@
+#!/usr/bin/env python3
+"""The paper-size hemisphere bench (docs/forming.md): explicit against
+quasi-static, symmetry, and a mesh study. Long (tens of minutes on two
+cores): run by `bash verification/run.sh --full`, not in CI.
+
+* `cross-check` ([0°], cases/hemisphere-0.toml as shipped, explicit and
+  quasi-static): the explicit punch force, interpolated at the quasi-static
+  steps, within 3 % RMS of the quasi-static peak force; the outer contours
+  at the final depth within 1 mm RMS (node by node, the same mesh); the zone
+  shear angles within 1.5 deg at every output depth (the issue's limits).
+* `symmetry`: the [0°] explicit contour mirror-symmetric about both blank
+  axes, the [45°] one about the rovings' diagonal x = y, within 1 mm.
+* `mesh` (with --mesh-study): the quasi-static [0°] bench at 42, 84 and 168
+  cells per side (3,528, 14,112, 56,448 triangles): punch force at 75 mm,
+  draw-in at the +x and +y edge midpoints and zone shear, with the observed
+  order p = log2(|f42 - f84| / |f84 - f168|); reported, and checked only for
+  monotone convergence of the force (|f84 - f168| < |f42 - f84|).
+
+Usage: full_hemisphere.py --ncform PATH [--keep DIR] [--mesh-study]
+"""
+
+import argparse
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+CASES = os.path.join(REPO, "cases")
+
+results = []
+
+
+def check(name, ok, detail):
+    results.append(bool(ok))
+    print(f"{'PASS' if ok else 'FAIL'} [{name}] {detail}", flush=True)
+
+
+def read_csv(path):
+    with open(path) as f:
+        rows = [r for r in csv.reader(line for line in f if not line.startswith("#"))]
+    return rows[0], np.array([[float(x) for x in r] for r in rows[1:]])
+
+
+def run_case(ncform, name, work, tag, edits=()):
+    with open(os.path.join(CASES, name)) as f:
+        text = f.read()
+    for old, new in edits:
+        if old not in text:
+            raise ValueError(f"{name}: `{old}` not in the case")
+        text = text.replace(old, new, 1)
+    case = os.path.join(work, f"{tag}.toml")
+    with open(case, "w") as f:
+        f.write(text)
+    out = os.path.join(work, tag)
+    if os.path.exists(os.path.join(out, "summary.json")):
+        print(f"# reusing {out}", flush=True)
+    else:
+        shutil.rmtree(out, ignore_errors=True)
+        print(f"# ncform run {tag}", flush=True)
+        run = subprocess.run([ncform, "run", case, "--out", out, "--quiet"],
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            print(run.stderr[-2000:])
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    print(f"# {tag}: {summary['status']}, wall {summary['wall_seconds']:.1f} s", flush=True)
+    return out, summary
+
+
+def contour(out):
+    _, data = read_csv(os.path.join(out, "outer_contour.csv"))
+    return data[:, 2:4], data[:, 4:]
+
+
+def mirror_deviation(reference, final, mirror):
+    index = {tuple(np.round(r, 6)): k for k, r in enumerate(reference)}
+    worst = 0.0
+    for k, r in enumerate(reference):
+        j = index.get(tuple(np.round(mirror(r), 6)))
+        if j is not None:
+            worst = max(worst, float(np.linalg.norm(mirror(final[j]) - final[k])))
+    return worst
+
+
+def forming(out):
+    header, data = read_csv(os.path.join(out, "forming.csv"))
+    return {h: data[:, i] for i, h in enumerate(header)}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--ncform", required=True)
+    ap.add_argument("--keep")
+    ap.add_argument("--mesh-study", action="store_true")
+    args = ap.parse_args()
+    work = args.keep or tempfile.mkdtemp(prefix="ncform-full-hemisphere-")
+    os.makedirs(work, exist_ok=True)
+
+    ex, ex_s = run_case(args.ncform, "hemisphere-0.toml", work, "explicit-0")
+    qs, qs_s = run_case(args.ncform, "hemisphere-0.toml", work, "quasi-static-0",
+                        [('solver = "explicit"', 'solver = "quasi-static"')])
+    e45, _ = run_case(args.ncform, "hemisphere-45.toml", work, "explicit-45")
+
+    complete = ex_s["complete"] and qs_s["complete"]
+    check("complete", complete,
+          f"explicit {ex_s['status']}, quasi-static {qs_s['status']}")
+    fe, fq = forming(ex), forming(qs)
+    d_key, f_key = "punch displacement [mm]", "punch force [N]"
+    f_ex = np.interp(fq[d_key], fe[d_key], fe[f_key])
+    peak = float(np.max(fq[f_key]))
+    rms = float(np.sqrt(np.mean((f_ex - fq[f_key]) ** 2)))
+    check("cross-check force", rms < 0.03 * peak,
+          f"explicit vs quasi-static punch force: RMS {rms:.3f} N = {100 * rms / peak:.2f} % "
+          f"of the peak {peak:.3f} N (limit 3 %), over {len(fq[d_key])} steps to "
+          f"{fq[d_key][-1]:.1f} mm")
+    ref_e, fin_e = contour(ex)
+    ref_q, fin_q = contour(qs)
+    same = np.allclose(ref_e, ref_q)
+    d = np.linalg.norm(fin_e[:, -2:] - fin_q[:, -2:], axis=1)
+    check("cross-check contour", same and float(np.sqrt(np.mean(d ** 2))) < 1.0,
+          f"final outer contours: RMS distance {np.sqrt(np.mean(d ** 2)):.3f} mm, largest "
+          f"{np.max(d):.3f} mm (limit 1 mm RMS)")
+    se, sq = ex_s["forming"]["states"], qs_s["forming"]["states"]
+    worst = 0.0
+    lines = []
+    for a, b in zip(se, sq):
+        for k, (za, zb) in enumerate(zip(a["zones"], b["zones"])):
+            diff = abs(za["shear_angle_mean"] - zb["shear_angle_mean"])
+            worst = max(worst, diff)
+            lines.append(f"{b['stroke']:.0f} mm zone {k}: {za['shear_angle_mean']:.2f} vs "
+                         f"{zb['shear_angle_mean']:.2f}")
+    check("cross-check zones", len(se) == len(sq) and worst < 1.5,
+          f"zone shear explicit vs quasi-static at {len(sq)} output depths: largest difference "
+          f"{worst:.2f} deg (limit 1.5); " + "; ".join(lines))
+
+    ref, fin = contour(ex)
+    dx = mirror_deviation(ref, fin[:, -2:], lambda p: np.array([p[0], -p[1]]))
+    dy = mirror_deviation(ref, fin[:, -2:], lambda p: np.array([-p[0], p[1]]))
+    check("symmetry [0]", max(dx, dy) < 1.0,
+          f"[0°] final contour about the x axis {dx:.3f} mm, about the y axis {dy:.3f} mm (limit 1)")
+    ref, fin = contour(e45)
+    dd = mirror_deviation(ref, fin[:, -2:], lambda p: np.array([p[1], p[0]]))
+    check("symmetry [45]", dd < 1.0,
+          f"[45°] final contour about the rovings' diagonal {dd:.3f} mm (limit 1)")
+
+    if args.mesh_study:
+        figures = {}
+        for cells in (42, 84, 168):
+            out, s = run_case(args.ncform, "hemisphere-0.toml", work, f"quasi-static-0-{cells}",
+                              [('solver = "explicit"', 'solver = "quasi-static"'),
+                               ("cells = [84, 84]", f"cells = [{cells}, {cells}]")])
+            last = s["forming"]["states"][-1]
+            figures[cells] = [last["tools"][2]["force"], last["draw_in"][0][0],
+                              last["draw_in"][0][1]] + [z["shear_angle_mean"] for z in last["zones"]]
+            print(f"# {cells} cells: {2 * cells * cells} triangles, {figures[cells]}, "
+                  f"wall {s['wall_seconds']:.1f} s", flush=True)
+        names = ["force", "draw-in +x", "draw-in +y", "zone A", "zone B", "zone C"]
+        parts = []
+        for k, name in enumerate(names):
+            a, b, c = (figures[n][k] for n in (42, 84, 168))
+            e1, e2 = abs(a - b), abs(b - c)
+            order = math.log2(e1 / e2) if e1 > 0 and e2 > 0 else float("nan")
+            parts.append(f"{name}: {a:.3f} / {b:.3f} / {c:.3f}, p = {order:.2f}")
+        f42, f84, f168 = (figures[n][0] for n in (42, 84, 168))
+        check("mesh", abs(f84 - f168) < abs(f42 - f84),
+              "42/84/168 cells: " + "; ".join(parts))
+    if not args.keep:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    finally:
+        passed = sum(results)
+        print(f"CHECK-SUMMARY passed={passed} failed={len(results) - passed}")
+        sys.exit(0 if results and all(results) else 1)
