@@ -15,8 +15,10 @@
 //! (`docs/solver.md`, "Dense unknowns"): with the sparse block `A` and the
 //! `m` dense unknowns,
 //!
-//!     [A B; C D] [x; y] = [f; g]:   S = D − C A⁻¹ B  (m × m),
-//!     y = S⁻¹ (g − C A⁻¹ f),   x = A⁻¹ (f − B y),
+//! ```text
+//! [A B; C D] [x; y] = [f; g]:   S = D − C A⁻¹ B  (m × m),
+//! y = S⁻¹ (g − C A⁻¹ f),   x = A⁻¹ (f − B y),
+//! ```
 //!
 //! with `A` factorised by sparse LU and `S` by dense Gaussian elimination
 //! with partial pivoting.
@@ -288,9 +290,9 @@ impl Bordered {
         let mut sparse_index = vec![None; n];
         let mut dense_index = vec![None; n];
         let mut sparse = Vec::with_capacity(n - m);
-        for j in 0..n {
+        for (j, index) in sparse_index.iter_mut().enumerate() {
             if dense.binary_search(&j).is_err() {
-                sparse_index[j] = Some(sparse.len());
+                *index = Some(sparse.len());
                 sparse.push(j);
             }
         }
@@ -380,7 +382,7 @@ impl Bordered {
             let (p, best) = (col..m)
                 .map(|r| (r, a[r * m + col].abs()))
                 .fold((col, -1.0), |acc, x| if x.1 > acc.1 { x } else { acc });
-            if !(best > 1e-14 * scale) || !best.is_finite() {
+            if best.is_nan() || best <= 1e-14 * scale || !best.is_finite() {
                 return Err(LinearSolverError::Singular(
                     "the Schur complement of the dense unknowns".into(),
                 ));
@@ -499,9 +501,9 @@ mod tests {
         let mut x = b.clone();
         solver.solve_in_place(&mut x).unwrap();
         let mut ax = vec![0.0; n];
-        for j in 0..n {
+        for (j, xj) in x.iter().enumerate() {
             for k in pattern.col_ptr()[j]..pattern.col_ptr()[j + 1] {
-                ax[pattern.row_idx()[k]] += values[k] * x[j];
+                ax[pattern.row_idx()[k]] += values[k] * xj;
             }
         }
         let error = ax
