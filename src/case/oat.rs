@@ -664,5 +664,17 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
     if p.max_iterations == 0 {
         return Err(bad("max_iterations", "0".into(), "at least 1"));
     }
+    pos("stabilisation_fraction", p.stabilisation_fraction)?;
+    if let Some(t) = p.max_wall_seconds {
+        pos("max_wall_seconds", t)?;
+    }
+    pos("stabilisation_limit", p.stabilisation_limit)?;
+    if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
+        return Err(bad(
+            "stabilisation_factor",
+            p.stabilisation_factor.to_string(),
+            "a number ≥ 0",
+        ));
+    }
     Ok(())
 }

@@ -97,6 +97,13 @@ pub struct FormingRow {
     pub draw_in: Vec<Vec<f64>>,
     /// Per zone of the case, the means over it.
     pub zones: Vec<ZoneValue>,
+    /// Strain energy of the plies \[N·mm\] (quasi-static).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub internal_energy: Option<f64>,
+    /// Energy dissipated by the viscous stabilisation so far \[N·mm\]
+    /// (quasi-static, `docs/solver.md`, "Stabilisation").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stabilisation_energy: Option<f64>,
 }
 
 /// The JSON summary of a forming run.
@@ -134,6 +141,10 @@ pub struct FormingSummary {
     pub timings: Timings,
     /// Quasi-static: of the assembly time, each term's evaluation \[s\].
     pub term_seconds: Vec<(String, f64)>,
+    /// Quasi-static: strain energy at the end, energy dissipated by the
+    /// stabilisation and its largest ratio to the strain energy \[N·mm, -\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stabilisation: Option<(f64, f64, f64)>,
     /// Time writing outputs \[s\].
     pub output_seconds: f64,
     /// Wall time of the whole run \[s\].
@@ -310,6 +321,8 @@ impl Sink<'_> {
             lifts,
             draw_in: self.readout.draw_in(snapshot.u),
             zones: self.readout.zones(self.case, self.built, snapshot.u),
+            internal_energy: None,
+            stabilisation_energy: None,
         }
     }
 
@@ -752,6 +765,7 @@ pub fn run_forming(
         explicit: report.explicit,
         timings: report.timings,
         term_seconds: report.term_seconds,
+        stabilisation: report.stabilisation,
         output_seconds: sink.seconds,
         wall_seconds: wall.elapsed().as_secs_f64(),
         forming: FormingFigures {
@@ -809,6 +823,7 @@ struct Report {
     explicit: Option<ExplicitFigures>,
     records: Option<Vec<ExplicitRecord>>,
     term_seconds: Vec<(String, f64)>,
+    stabilisation: Option<(f64, f64, f64)>,
 }
 
 fn run_quasi_static(
@@ -832,6 +847,8 @@ fn run_quasi_static(
             row.iterations = Some(record.iterations);
             row.augmentations = Some(record.augmentations);
             row.residual = record.residuals.last().copied();
+            row.internal_energy = Some(record.internal_energy);
+            row.stabilisation_energy = record.stabilisation.map(|s| s.dissipated_total);
             if let Some(c) = &record.contact {
                 row.max_penetration = Some(c.max_penetration);
                 row.multiplier_change = Some(c.multiplier_change);
@@ -848,6 +865,10 @@ fn run_quasi_static(
             sink.seconds += clock.elapsed().as_secs_f64();
         },
     )?;
+    result
+        .warnings
+        .iter()
+        .for_each(|w| eprintln!("warning: {w}"));
     Ok(Report {
         status: result.status,
         unknowns: result.unknowns,
@@ -858,6 +879,11 @@ fn run_quasi_static(
         explicit: None,
         records: None,
         term_seconds: result.term_seconds,
+        stabilisation: Some((
+            result.internal_energy,
+            result.stabilisation_energy,
+            result.max_stabilisation_ratio,
+        )),
     })
 }
 
@@ -918,6 +944,7 @@ fn run_explicit(
         }),
         records: Some(result.records),
         term_seconds: Vec::new(),
+        stabilisation: None,
     })
 }
 
@@ -969,6 +996,8 @@ fn write_history(
         "closed contacts [-]",
         "slipping contacts [-]",
         "residual [N]",
+        "internal energy [N*mm]",
+        "stabilisation energy [N*mm]",
     ] {
         header.push(h.into());
     }
@@ -994,6 +1023,8 @@ fn write_history(
                 closed as f64,
                 slipping as f64,
                 h.residual.unwrap_or(0.0),
+                h.internal_energy.unwrap_or(0.0),
+                h.stabilisation_energy.unwrap_or(0.0),
             ]);
             row
         })

@@ -6,6 +6,22 @@
 //! LDLᵀ with a fill-reducing symmetric ordering (the tangent of a
 //! hyperelastic law is symmetric). `docs/solver.md` has the measurements
 //! that chose the default.
+//!
+//! **Dense unknowns and LU.** A floating tool's dof couples to every node
+//! of the plies (its contact stencils), so its row and column of the
+//! tangent are dense. LU with partial pivoting bounds its fill by the
+//! Cholesky factor of `AᵀA`, which one dense row makes completely dense
+//! (`n²` storage, `n³` work). The LU path therefore borders such unknowns
+//! (`docs/solver.md`, "Dense unknowns"): with the sparse block `A` and the
+//! `m` dense unknowns,
+//!
+//! ```text
+//! [A B; C D] [x; y] = [f; g]:   S = D − C A⁻¹ B  (m × m),
+//! y = S⁻¹ (g − C A⁻¹ f),   x = A⁻¹ (f − B y),
+//! ```
+//!
+//! with `A` factorised by sparse LU and `S` by dense Gaussian elimination
+//! with partial pivoting.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
@@ -38,10 +54,53 @@ pub enum LinearSolverError {
     Other(String),
 }
 
+/// A column with more stored entries than this (and than
+/// `DENSE_FRACTION` of the dimension) is bordered on the LU path.
+const DENSE_MIN_ENTRIES: usize = 200;
+/// See [`DENSE_MIN_ENTRIES`].
+const DENSE_FRACTION: f64 = 0.1;
+
+/// Where one entry of the full matrix goes in the bordered LU.
+#[derive(Debug, Clone, Copy)]
+enum Target {
+    /// Slot in the values of the sparse block `A`.
+    Sparse(usize),
+    /// `B[i, j]`: row `i` of the sparse set, column `j` of the dense set
+    /// (column-major `n_s × m`).
+    Right(usize),
+    /// `C[j, i]` (row-major `m × n_s`: row `j` of the dense set).
+    Below(usize),
+    /// `D[j, k]` (`m × m`, row-major).
+    Corner(usize),
+}
+
+/// LU of the sparse block and the Schur complement of the dense unknowns.
+struct Bordered {
+    /// The dense unknowns.
+    dense: Vec<usize>,
+    /// The sparse unknowns in order.
+    sparse: Vec<usize>,
+    /// The sparse block (values refilled from the full matrix).
+    block: SparseColMat<usize, f64>,
+    /// Per entry of the full matrix: where it goes.
+    targets: Vec<Target>,
+    right: Vec<f64>,
+    below: Vec<f64>,
+    corner: Vec<f64>,
+    /// `Z = A⁻¹ B` (column-major `n_s × m`).
+    z: Vec<f64>,
+    /// The Schur complement, factorised in place (row-major `m × m`), and
+    /// its row permutation.
+    schur: Vec<f64>,
+    pivots: Vec<usize>,
+    scratch: Vec<f64>,
+}
+
 enum Factorisation {
     Lu {
         symbolic: SymbolicLu<usize>,
         numeric: Option<Lu<usize, f64>>,
+        bordered: Option<Box<Bordered>>,
     },
     Ldlt {
         symbolic: SymbolicCholesky<usize>,
@@ -69,9 +128,18 @@ impl SparseSolver {
     ) -> Result<Self, LinearSolverError> {
         let other = |e: &dyn std::fmt::Debug| LinearSolverError::Other(format!("{e:?}"));
         let factorisation = match kind {
-            LinearSolverKind::Lu => Factorisation::Lu {
-                symbolic: SymbolicLu::try_new(pattern.as_ref()).map_err(|e| other(&e))?,
-                numeric: None,
+            LinearSolverKind::Lu => match Bordered::new(&pattern) {
+                Some(bordered) => Factorisation::Lu {
+                    symbolic: SymbolicLu::try_new(bordered.block.symbolic())
+                        .map_err(|e| other(&e))?,
+                    numeric: None,
+                    bordered: Some(Box::new(bordered)),
+                },
+                None => Factorisation::Lu {
+                    symbolic: SymbolicLu::try_new(pattern.as_ref()).map_err(|e| other(&e))?,
+                    numeric: None,
+                    bordered: None,
+                },
             },
             LinearSolverKind::Ldlt => {
                 let symbolic = factorize_symbolic_cholesky(
@@ -112,11 +180,26 @@ impl SparseSolver {
     /// A singular matrix.
     pub fn factorize(&mut self) -> Result<(), LinearSolverError> {
         match &mut self.factorisation {
-            Factorisation::Lu { symbolic, numeric } => {
+            Factorisation::Lu {
+                symbolic,
+                numeric,
+                bordered,
+            } => {
                 *numeric = None;
-                let lu = Lu::try_new_with_symbolic(symbolic.clone(), self.matrix.as_ref())
-                    .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
-                *numeric = Some(lu);
+                match bordered {
+                    None => {
+                        let lu = Lu::try_new_with_symbolic(symbolic.clone(), self.matrix.as_ref())
+                            .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
+                        *numeric = Some(lu);
+                    }
+                    Some(b) => {
+                        b.split(self.matrix.val());
+                        let lu = Lu::try_new_with_symbolic(symbolic.clone(), b.block.as_ref())
+                            .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
+                        b.schur_complement(&lu)?;
+                        *numeric = Some(lu);
+                    }
+                }
             }
             Factorisation::Ldlt {
                 symbolic,
@@ -153,11 +236,16 @@ impl SparseSolver {
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) -> Result<(), LinearSolverError> {
         let n = rhs.len();
         match &mut self.factorisation {
-            Factorisation::Lu { numeric, .. } => {
+            Factorisation::Lu {
+                numeric, bordered, ..
+            } => {
                 let lu = numeric
                     .as_ref()
                     .ok_or_else(|| LinearSolverError::Other("not factorised".into()))?;
-                lu.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1));
+                match bordered {
+                    None => lu.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1)),
+                    Some(b) => b.solve_in_place(lu, rhs),
+                }
             }
             Factorisation::Ldlt {
                 symbolic,
@@ -181,5 +269,247 @@ impl SparseSolver {
         } else {
             Err(LinearSolverError::NonFinite)
         }
+    }
+}
+
+impl Bordered {
+    /// Splits the unknowns of `pattern` into sparse and dense ones; `None`
+    /// when no column is dense.
+    fn new(pattern: &SymbolicSparseColMat<usize>) -> Option<Self> {
+        let n = pattern.ncols();
+        let col_ptr = pattern.col_ptr();
+        let row_idx = pattern.row_idx();
+        let threshold = DENSE_MIN_ENTRIES.max((DENSE_FRACTION * n as f64) as usize);
+        let dense: Vec<usize> = (0..n)
+            .filter(|&j| col_ptr[j + 1] - col_ptr[j] > threshold)
+            .collect();
+        if dense.is_empty() || dense.len() == n {
+            return None;
+        }
+        let m = dense.len();
+        let mut sparse_index = vec![None; n];
+        let mut dense_index = vec![None; n];
+        let mut sparse = Vec::with_capacity(n - m);
+        for (j, index) in sparse_index.iter_mut().enumerate() {
+            if dense.binary_search(&j).is_err() {
+                *index = Some(sparse.len());
+                sparse.push(j);
+            }
+        }
+        for (k, &j) in dense.iter().enumerate() {
+            dense_index[j] = Some(k);
+        }
+        let ns = sparse.len();
+        // The sparse block's pattern and every entry's target.
+        let mut targets = Vec::with_capacity(row_idx.len());
+        let mut block_ptr = vec![0usize; ns + 1];
+        let mut block_rows = Vec::new();
+        for j in 0..n {
+            for &i in &row_idx[col_ptr[j]..col_ptr[j + 1]] {
+                let target = match (sparse_index[i], sparse_index[j]) {
+                    (Some(si), Some(_)) => {
+                        block_rows.push(si);
+                        Target::Sparse(block_rows.len() - 1)
+                    }
+                    (Some(si), None) => Target::Right(dense_index[j].expect("dense") * ns + si),
+                    (None, Some(sj)) => Target::Below(dense_index[i].expect("dense") * ns + sj),
+                    (None, None) => Target::Corner(
+                        dense_index[i].expect("dense") * m + dense_index[j].expect("dense"),
+                    ),
+                };
+                targets.push(target);
+            }
+            if let Some(sj) = sparse_index[j] {
+                block_ptr[sj + 1] = block_rows.len();
+            }
+        }
+        let nnz = block_rows.len();
+        let symbolic = SymbolicSparseColMat::new_checked(ns, ns, block_ptr, None, block_rows);
+        Some(Self {
+            dense,
+            sparse,
+            block: SparseColMat::new(symbolic, vec![0.0; nnz]),
+            targets,
+            right: vec![0.0; ns * m],
+            below: vec![0.0; ns * m],
+            corner: vec![0.0; m * m],
+            z: vec![0.0; ns * m],
+            schur: vec![0.0; m * m],
+            pivots: vec![0; m],
+            scratch: vec![0.0; ns.max(m)],
+        })
+    }
+
+    /// Copies the full matrix's values into the blocks.
+    fn split(&mut self, values: &[f64]) {
+        self.right.fill(0.0);
+        self.below.fill(0.0);
+        self.corner.fill(0.0);
+        let block = self.block.val_mut();
+        for (&target, &v) in self.targets.iter().zip(values) {
+            match target {
+                Target::Sparse(k) => block[k] = v,
+                Target::Right(k) => self.right[k] = v,
+                Target::Below(k) => self.below[k] = v,
+                Target::Corner(k) => self.corner[k] = v,
+            }
+        }
+    }
+
+    /// `Z = A⁻¹ B` and the factorised Schur complement `D − C Z`.
+    fn schur_complement(&mut self, lu: &Lu<usize, f64>) -> Result<(), LinearSolverError> {
+        let ns = self.sparse.len();
+        let m = self.dense.len();
+        self.z.copy_from_slice(&self.right);
+        lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut self.z, ns, m));
+        if !self.z.iter().all(|v| v.is_finite()) {
+            return Err(LinearSolverError::Singular(
+                "the sparse block of the bordered LU".into(),
+            ));
+        }
+        for r in 0..m {
+            let c_row = &self.below[r * ns..(r + 1) * ns];
+            for k in 0..m {
+                let z_col = &self.z[k * ns..(k + 1) * ns];
+                let cz: f64 = c_row.iter().zip(z_col).map(|(a, b)| a * b).sum();
+                self.schur[r * m + k] = self.corner[r * m + k] - cz;
+            }
+        }
+        // Gaussian elimination with partial pivoting, in place.
+        let a = &mut self.schur;
+        let scale = a.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
+        for col in 0..m {
+            let (p, best) = (col..m)
+                .map(|r| (r, a[r * m + col].abs()))
+                .fold((col, -1.0), |acc, x| if x.1 > acc.1 { x } else { acc });
+            if best.is_nan() || best <= 1e-14 * scale || !best.is_finite() {
+                return Err(LinearSolverError::Singular(
+                    "the Schur complement of the dense unknowns".into(),
+                ));
+            }
+            self.pivots[col] = p;
+            if p != col {
+                for k in 0..m {
+                    a.swap(p * m + k, col * m + k);
+                }
+            }
+            let pivot = a[col * m + col];
+            for r in col + 1..m {
+                let f = a[r * m + col] / pivot;
+                a[r * m + col] = f;
+                for k in col + 1..m {
+                    a[r * m + k] -= f * a[col * m + k];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves the full system in place with the factorised blocks.
+    fn solve_in_place(&mut self, lu: &Lu<usize, f64>, rhs: &mut [f64]) {
+        let ns = self.sparse.len();
+        let m = self.dense.len();
+        // x' = A⁻¹ f.
+        let x = &mut self.scratch[..ns];
+        for (k, &j) in self.sparse.iter().enumerate() {
+            x[k] = rhs[j];
+        }
+        lu.solve_in_place(MatMut::from_column_major_slice_mut(x, ns, 1));
+        // y = S⁻¹ (g − C x').
+        let mut y: Vec<f64> = self
+            .dense
+            .iter()
+            .enumerate()
+            .map(|(r, &j)| {
+                let c_row = &self.below[r * ns..(r + 1) * ns];
+                rhs[j] - c_row.iter().zip(x.iter()).map(|(a, b)| a * b).sum::<f64>()
+            })
+            .collect();
+        let a = &self.schur;
+        for col in 0..m {
+            y.swap(col, self.pivots[col]);
+            for r in col + 1..m {
+                y[r] -= a[r * m + col] * y[col];
+            }
+        }
+        for col in (0..m).rev() {
+            for k in col + 1..m {
+                y[col] -= a[col * m + k] * y[k];
+            }
+            y[col] /= a[col * m + col];
+        }
+        // x = x' − Z y.
+        for (k, &j) in self.sparse.iter().enumerate() {
+            let zy: f64 = (0..m).map(|c| self.z[c * ns + k] * y[c]).sum();
+            rhs[j] = x[k] - zy;
+        }
+        for (c, &j) in self.dense.iter().enumerate() {
+            rhs[j] = y[c];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An unsymmetric tridiagonal matrix of `n` unknowns with one dense
+    /// row and column (a floating tool's dof) at `dense`.
+    fn bordered_matrix(n: usize, dense: usize) -> (SymbolicSparseColMat<usize>, Vec<f64>) {
+        let mut col_ptr = vec![0];
+        let mut rows = Vec::new();
+        let mut values = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let near = i.abs_diff(j) <= 1;
+                if near || i == dense || j == dense {
+                    rows.push(i);
+                    values.push(if i == j {
+                        4.0 + (j % 7) as f64
+                    } else if i == dense || j == dense {
+                        0.3 + 0.01 * ((i + 2 * j) % 11) as f64
+                    } else {
+                        -1.0 + 0.1 * ((i + j) % 3) as f64
+                    });
+                }
+            }
+            col_ptr.push(rows.len());
+        }
+        (
+            SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows),
+            values,
+        )
+    }
+
+    /// The bordered LU solves a matrix with a dense row and column to
+    /// round-off (the residual of `A x = b`).
+    #[test]
+    fn bordered_lu_solves_a_dense_row_and_column() {
+        let n = 600;
+        let (pattern, values) = bordered_matrix(n, 250);
+        let mut solver = SparseSolver::new(LinearSolverKind::Lu, pattern.clone()).unwrap();
+        assert!(matches!(
+            &solver.factorisation,
+            Factorisation::Lu {
+                bordered: Some(_),
+                ..
+            }
+        ));
+        solver.values_mut().copy_from_slice(&values);
+        solver.factorize().unwrap();
+        let b: Vec<f64> = (0..n).map(|i| ((i * 37) % 17) as f64 - 8.0).collect();
+        let mut x = b.clone();
+        solver.solve_in_place(&mut x).unwrap();
+        let mut ax = vec![0.0; n];
+        for (j, xj) in x.iter().enumerate() {
+            for k in pattern.col_ptr()[j]..pattern.col_ptr()[j + 1] {
+                ax[pattern.row_idx()[k]] += values[k] * xj;
+            }
+        }
+        let error = ax
+            .iter()
+            .zip(&b)
+            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(error < 1e-10, "residual {error}");
     }
 }

@@ -17,6 +17,6 @@ pub use explicit::{
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
-    NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings, StepRecord,
-    solve_quasi_static,
+    NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings, Stabilisation,
+    StabilisationRecord, StepRecord, solve_quasi_static,
 };

@@ -31,6 +31,13 @@
 //! when the residual, the gap and the change of the multipliers all pass;
 //! the terms then commit their history (friction references). A failed
 //! step restores the history of the last accepted step.
+//!
+//! Optionally a viscous (pseudo-dynamic) stabilisation adds
+//! `(c/Δλ) M (u − u_n)` to the residual of the free dofs, with `c` fixed
+//! or chosen from a target dissipation rate; its dissipated energy and the
+//! model's internal energy are reported per step (`docs/solver.md`,
+//! "Stabilisation"). `NCFORM_NEWTON_TRACE` in the environment prints every
+//! iteration, augmentation, failed attempt and accepted step to stderr.
 
 use std::time::Instant;
 
@@ -38,7 +45,7 @@ use serde::{Deserialize, Serialize};
 
 use super::assembly::Assembler;
 use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
-use crate::model::{Augmentation, Model, State, TermFailure};
+use crate::model::{Augmentation, Masses, Model, State, TermFailure};
 
 /// Solver knobs, all with documented defaults (`docs/cases.md`).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -75,7 +82,51 @@ pub struct NewtonParameters {
     /// Newton solves per load step for the multipliers of augmented terms
     /// (contact) to converge, at most. Default 50.
     pub max_augmentations: usize,
+    /// Viscous (pseudo-dynamic) stabilisation of the free dofs
+    /// (`docs/solver.md`, "Stabilisation"). Default off.
+    pub stabilisation: Stabilisation,
+    /// Automatic stabilisation: the target rate of viscous dissipation per
+    /// unit load parameter relative to the internal energy, `φ`
+    /// (`c = φ E_int / ‖v‖²_M`). Default 1e-4.
+    pub stabilisation_fraction: f64,
+    /// Constant stabilisation: the damping factor `c` (a force per mass
+    /// and displacement per unit λ: N/(mm·t) = 1/s² when λ is a programme
+    /// fraction). Default 0.
+    pub stabilisation_factor: f64,
+    /// Warn when the dissipated energy exceeds this fraction of the
+    /// internal energy. Default 0.01.
+    pub stabilisation_limit: f64,
+    /// Stop (incomplete, keeping every converged step) when a step would
+    /// start after this wall time \[s\]. Default: no limit.
+    pub max_wall_seconds: Option<f64>,
 }
+
+/// The viscous stabilisation of the quasi-static path
+/// (`docs/solver.md`, "Stabilisation").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stabilisation {
+    /// No stabilisation.
+    #[default]
+    Off,
+    /// `c` from the target dissipation rate `stabilisation_fraction`,
+    /// raised after failed attempts.
+    Automatic,
+    /// A fixed `c = stabilisation_factor`.
+    Constant,
+}
+
+/// Per free dof below this many times the mean non-zero nodal mass, the
+/// stabilisation uses the mean (dofs without mass still get damped).
+const STABILISATION_MIN_MASS: f64 = 1e-3;
+/// Factor on the automatic damping after a failed attempt.
+const STABILISATION_BOOST: f64 = 10.0;
+/// Largest factor on the automatic damping.
+const STABILISATION_MAX_BOOST: f64 = 1e3;
+/// From this fraction of the programme on, the dissipated-to-internal
+/// energy ratio counts for the warning (the ply is nearly unstrained
+/// before).
+const STABILISATION_RATIO_FROM: f64 = 0.1;
 
 impl Default for NewtonParameters {
     fn default() -> Self {
@@ -94,6 +145,11 @@ impl Default for NewtonParameters {
             extrapolate: true,
             linear_solver: None,
             max_augmentations: 50,
+            stabilisation: Stabilisation::Off,
+            stabilisation_fraction: 1e-4,
+            stabilisation_factor: 0.0,
+            stabilisation_limit: 0.01,
+            max_wall_seconds: None,
         }
     }
 }
@@ -124,6 +180,23 @@ pub struct StepRecord {
     /// slipping contacts), `None` for a model without augmented terms.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact: Option<Augmentation>,
+    /// Strain energy of the model (the terms' internal energies: membranes,
+    /// bending) [N·mm].
+    pub internal_energy: f64,
+    /// The viscous stabilisation of the step, `None` when it is off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stabilisation: Option<StabilisationRecord>,
+}
+
+/// What the viscous stabilisation did in one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct StabilisationRecord {
+    /// The damping factor `c` of the step.
+    pub factor: f64,
+    /// Energy dissipated in the step, `(c/Δλ) Δuᵀ M Δu` [N·mm].
+    pub dissipated: f64,
+    /// Energy dissipated since the start [N·mm].
+    pub dissipated_total: f64,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -185,6 +258,16 @@ pub struct QuasiStaticResult {
     pub augmentations: usize,
     /// Of the assembly time, the part each term took to evaluate \[s\].
     pub term_seconds: Vec<(String, f64)>,
+    /// Strain energy at the last converged step [N·mm].
+    pub internal_energy: f64,
+    /// Energy dissipated by the viscous stabilisation over the run [N·mm]
+    /// (0 when it is off).
+    pub stabilisation_energy: f64,
+    /// Largest ratio of the dissipated to the internal energy over the
+    /// steps from 10 % of the programme on (0 when off).
+    pub max_stabilisation_ratio: f64,
+    /// Warnings (the stabilisation's dissipation above its limit).
+    pub warnings: Vec<String>,
 }
 
 /// Why one attempt at a load step failed.
@@ -223,6 +306,10 @@ struct Work {
     trial: Vec<f64>,
     diag: Vec<f64>,
     diag_slots: Vec<usize>,
+    /// Stabilisation: mass of every free dof \[t\] and the free dofs at the
+    /// last accepted step \[mm\].
+    masses: Vec<f64>,
+    previous: Vec<f64>,
 }
 
 /// Everything the step loop needs.
@@ -238,6 +325,15 @@ struct Newton<'a> {
     timings: SolverTimings,
     iterations: usize,
     factorisations: usize,
+    /// `c/Δλ` of the step being solved (0: no stabilisation).
+    viscosity: f64,
+}
+
+/// `NCFORM_NEWTON_TRACE` set: print every iteration, augmentation and
+/// failed attempt to stderr (diagnostics).
+fn trace() -> bool {
+    static TRACE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *TRACE.get_or_init(|| std::env::var_os("NCFORM_NEWTON_TRACE").is_some())
 }
 
 fn norm(v: &[f64]) -> f64 {
@@ -277,6 +373,14 @@ impl Newton<'_> {
         let result =
             self.assembler
                 .force_tangent(self.model, &state, &mut self.work.internal, values);
+        if self.viscosity > 0.0 {
+            let values = self.solver.values_mut();
+            for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
+                let cm = self.viscosity * self.work.masses[k];
+                self.work.internal[d] += cm * (u[d] - self.work.previous[k]);
+                values[self.work.diag_slots[k]] += cm;
+            }
+        }
         self.timings.assembly += start.elapsed().as_secs_f64();
         result
     }
@@ -287,6 +391,12 @@ impl Newton<'_> {
         let result = self
             .assembler
             .force(self.model, &state, &mut self.work.trial_internal);
+        if self.viscosity > 0.0 {
+            for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
+                let cm = self.viscosity * self.work.masses[k];
+                self.work.trial_internal[d] += cm * (u[d] - self.work.previous[k]);
+            }
+        }
         self.timings.assembly += start.elapsed().as_secs_f64();
         result
     }
@@ -434,6 +544,12 @@ impl Newton<'_> {
             self.work.internal = internal;
             let residual = norm(&r);
             history.push(residual);
+            if trace() {
+                eprintln!(
+                    "  [newton] λ {:.6} it {it} ‖r‖ {residual:.3e} reaction {reaction:.3e}",
+                    self.load
+                );
+            }
             // Relative to the reactions, but never below the absolute floor
             // (tiny loads, a first step of a ramped load: the round-off of
             // stiff terms sits above a relative bound there).
@@ -521,7 +637,14 @@ impl Newton<'_> {
                         change: r.multiplier_change,
                     });
                 }
-                Some(_) => {}
+                Some(r) => {
+                    if trace() {
+                        eprintln!(
+                            "  [augment] {augmentations}: pen {:.3e} change {:.3e} active {} slip {}",
+                            r.max_penetration, r.multiplier_change, r.active, r.slipping
+                        );
+                    }
+                }
             }
         }
         unreachable!("the loop returns at max_augmentations")
@@ -593,6 +716,8 @@ pub fn solve_quasi_static(
         })
         .collect();
     let nonzeros = assembler.nnz();
+    let masses = stabilisation_masses(model, &assembler.dofs);
+    let previous: Vec<f64> = assembler.dofs.free.iter().map(|&d| u[d]).collect();
     let mut newton = Newton {
         model,
         load: 0.0,
@@ -606,6 +731,8 @@ pub fn solve_quasi_static(
             trial: vec![0.0; n_total],
             diag: vec![0.0; n_free],
             diag_slots,
+            masses,
+            previous,
         },
         timings: SolverTimings {
             symbolic: symbolic_time,
@@ -613,6 +740,7 @@ pub fn solve_quasi_static(
         },
         iterations: 0,
         factorisations: 0,
+        viscosity: 0.0,
     };
 
     let mut stops: Vec<f64> = stops
@@ -639,6 +767,13 @@ pub fn solve_quasi_static(
     let mut total_augmentations = 0;
     let mut trial_u = u.to_vec();
     let tiny = 1e-12 * final_load.abs().max(1.0);
+    // Stabilisation: the factor on the automatic damping (raised after a
+    // failed attempt), the energies so far.
+    let mut boost = 1.0_f64;
+    let start_state = newton.state(u);
+    let mut internal_energy = internal_energy_of(newton.model, &start_state);
+    let mut dissipated_total = 0.0;
+    let mut max_ratio = 0.0_f64;
     let status = loop {
         if load >= final_load - tiny {
             break RunStatus::Complete;
@@ -650,8 +785,49 @@ pub fn solve_quasi_static(
             .unwrap_or(final_load);
         let target = (load + increment).min(next_stop);
         let step_increment = target - load;
+        if let Some(budget) = params.max_wall_seconds
+            && start.elapsed().as_secs_f64() > budget
+        {
+            break RunStatus::Incomplete {
+                load_reached: load,
+                load_attempted: target,
+                reason: format!(
+                    "the wall-time budget of {budget} s (solver.max_wall_seconds) ran out"
+                ),
+            };
+        }
         newton.load = target;
         newton.load_fraction = fraction(target);
+        // The damping factor of this step (`docs/solver.md`, "Stabilisation").
+        let factor = match params.stabilisation {
+            Stabilisation::Off => 0.0,
+            Stabilisation::Constant => params.stabilisation_factor,
+            Stabilisation::Automatic => match &last_increment {
+                Some((previous, delta)) => {
+                    // ‖v‖²_M with v the last step's Δu/Δλ.
+                    let v2: f64 = newton
+                        .assembler
+                        .dofs
+                        .free
+                        .iter()
+                        .zip(&newton.work.masses)
+                        .map(|(&d, m)| m * delta[d] * delta[d])
+                        .sum::<f64>()
+                        / (previous * previous);
+                    if v2 > 0.0 && internal_energy > 0.0 {
+                        boost * params.stabilisation_fraction * internal_energy / v2
+                    } else {
+                        0.0
+                    }
+                }
+                None => 0.0,
+            },
+        };
+        newton.viscosity = if step_increment > 0.0 {
+            factor / step_increment
+        } else {
+            0.0
+        };
         // Predictor: prescribed values at the target, free dofs extrapolated;
         // then Newton solves, augmenting between them.
         let mut attempt = |extrapolate: bool, trial_u: &mut Vec<f64>| {
@@ -688,6 +864,39 @@ pub fn solve_quasi_static(
                     .sum();
                 load = target;
                 total_augmentations += solved.augmentations;
+                let stabilisation = (params.stabilisation != Stabilisation::Off).then(|| {
+                    let dissipated: f64 = newton.viscosity
+                        * newton
+                            .assembler
+                            .dofs
+                            .free
+                            .iter()
+                            .zip(&newton.work.masses)
+                            .map(|(&d, m)| m * delta[d] * delta[d])
+                            .sum::<f64>();
+                    dissipated_total += dissipated;
+                    StabilisationRecord {
+                        factor,
+                        dissipated,
+                        dissipated_total,
+                    }
+                });
+                for (k, &d) in newton.assembler.dofs.free.iter().enumerate() {
+                    newton.work.previous[k] = u[d];
+                }
+                internal_energy = internal_energy_of(newton.model, &state);
+                if stabilisation.is_some()
+                    && fraction(load) >= STABILISATION_RATIO_FROM
+                    && internal_energy > 0.0
+                {
+                    max_ratio = max_ratio.max(dissipated_total / internal_energy);
+                }
+                boost = (boost / 2.0).max(1.0);
+                if trace() {
+                    eprintln!(
+                        "[step] λ {load:.6} reaction {reaction:.6e} E_int {internal_energy:.6e} D {dissipated_total:.6e} c {factor:.3e}"
+                    );
+                }
                 let record = StepRecord {
                     step: steps.len() + 1,
                     load,
@@ -698,6 +907,8 @@ pub fn solve_quasi_static(
                     cutbacks,
                     augmentations: solved.augmentations,
                     contact: solved.contact,
+                    internal_energy,
+                    stabilisation,
                 };
                 on_step(
                     &record,
@@ -718,8 +929,14 @@ pub fn solve_quasi_static(
                 increment = increment.max(step_increment.min(params.max_increment));
             }
             Err(err) => {
+                if trace() {
+                    eprintln!("[newton] λ {target:.6} (Δλ {step_increment:.3e}) failed: {err}");
+                }
                 newton.model.restore();
                 cutbacks += 1;
+                if params.stabilisation == Stabilisation::Automatic {
+                    boost = (boost * STABILISATION_BOOST).min(STABILISATION_MAX_BOOST);
+                }
                 increment = step_increment * params.cutback;
                 if increment < params.min_increment {
                     break RunStatus::Incomplete {
@@ -731,6 +948,14 @@ pub fn solve_quasi_static(
             }
         }
     };
+    let mut warnings = Vec::new();
+    if params.stabilisation != Stabilisation::Off && max_ratio > params.stabilisation_limit {
+        warnings.push(format!(
+            "the viscous stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\")",
+            100.0 * max_ratio,
+            100.0 * params.stabilisation_limit
+        ));
+    }
     Ok(QuasiStaticResult {
         status,
         steps,
@@ -742,5 +967,55 @@ pub fn solve_quasi_static(
         linear_solver,
         augmentations: total_augmentations,
         term_seconds: newton.assembler.term_seconds.clone(),
+        internal_energy,
+        stabilisation_energy: dissipated_total,
+        max_stabilisation_ratio: max_ratio,
+        warnings,
     })
+}
+
+/// The strain energy of the model: the sum of its terms' internal
+/// energies (membranes, bending) at `state`; 0 where a term cannot be
+/// evaluated.
+fn internal_energy_of(model: &mut Model, state: &State) -> f64 {
+    model
+        .terms
+        .iter_mut()
+        .map(|t| t.energy(state).map_or(0.0, |e| e.internal))
+        .sum()
+}
+
+/// The mass of every free dof for the stabilisation: the terms' lumped
+/// masses (`Term::lumped_masses`), with dofs lighter than
+/// `STABILISATION_MIN_MASS` times the mean non-zero nodal mass raised to
+/// that mean (a model without masses gets unit masses).
+fn stabilisation_masses(model: &Model, dofs: &super::dofs::DofMap) -> Vec<f64> {
+    let mut masses = Masses {
+        node: vec![0.0; model.nodes],
+        extra: vec![0.0; model.extras.len()],
+    };
+    for t in &model.terms {
+        t.lumped_masses(&mut masses);
+    }
+    let massive: Vec<f64> = masses.node.iter().copied().filter(|m| *m > 0.0).collect();
+    let mean = if massive.is_empty() {
+        1.0
+    } else {
+        massive.iter().sum::<f64>() / massive.len() as f64
+    };
+    dofs.free
+        .iter()
+        .map(|&d| {
+            let m = if d < 3 * model.nodes {
+                masses.node[d / 3]
+            } else {
+                masses.extra[d - 3 * model.nodes]
+            };
+            if m < STABILISATION_MIN_MASS * mean {
+                mean
+            } else {
+                m
+            }
+        })
+        .collect()
 }
