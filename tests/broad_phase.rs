@@ -224,7 +224,7 @@ fn broad_phase_never_misses_a_contact() {
             }
             // Keep the nodes about the face (z from −0.5 to 8 mm).
             let z = reference[i].z + u[3 * i + 2] + u[3 * n];
-            if z < -0.5 || z > 8.0 {
+            if !(-0.5..=8.0).contains(&z) {
                 u[3 * i + 2] = rng.random_range(-0.3..6.0) - reference[i].z - u[3 * n];
             }
         }
@@ -237,9 +237,9 @@ fn broad_phase_never_misses_a_contact() {
         with.explicit_forces(&state, &mut fa).unwrap();
         without.explicit_forces(&state, &mut fb).unwrap();
         default.explicit_forces(&state, &mut fc).unwrap();
-        for k in 0..size {
-            assert_eq!(fa[k].to_bits(), fb[k].to_bits(), "step {step}, entry {k}");
-            assert_eq!(fa[k].to_bits(), fc[k].to_bits(), "step {step}, entry {k}");
+        for (k, ((a, b), c)) in fa.iter().zip(&fb).zip(&fc).enumerate() {
+            assert_eq!(a.to_bits(), b.to_bits(), "step {step}, entry {k}");
+            assert_eq!(a.to_bits(), c.to_bits(), "step {step}, entry {k}");
         }
         assert_eq!(with.node_contacts(), without.node_contacts(), "step {step}");
         assert_eq!(with.node_contacts(), default.node_contacts(), "step {step}");
@@ -327,7 +327,7 @@ fn explicit_forming_run_is_bit_identical_without_the_broad_phase() {
     // not a collapse of the stable step (docs/explicit.md).
     let (landings, shortest) = a.landing_steps;
     assert!(
-        landings >= 1 && landings <= times_len() + 1,
+        (1..=times_len() + 1).contains(&landings),
         "{landings} landings, steps {:?}, stable {:?}, {} increments",
         a.time_step_range,
         a.stable_step_range,
