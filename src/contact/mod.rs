@@ -37,6 +37,26 @@ pub struct SurfacePoint {
     pub hessian: Matrix3<f64>,
 }
 
+/// The first-order part of a [`SurfacePoint`]: the signed distance and the
+/// normal, without the Hessian (what the explicit contact force needs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceNormal {
+    /// Signed distance `d` \[mm\]: > 0 on the free side.
+    pub distance: f64,
+    /// `∇d`: the unit outward normal.
+    pub normal: Vector3<f64>,
+}
+
+impl From<&SurfacePoint> for SurfaceNormal {
+    #[inline]
+    fn from(point: &SurfacePoint) -> Self {
+        Self {
+            distance: point.distance,
+            normal: point.normal,
+        }
+    }
+}
+
 /// A rigid surface in its own frame.
 pub trait RigidSurface: Send + Sync {
     /// The point `x` \[mm\] relative to the surface; `None` when `x` lies on
@@ -44,4 +64,28 @@ pub trait RigidSurface: Send + Sync {
     /// cheap cull of far nodes) or where the distance has no gradient (a
     /// sphere's centre, say). A point inside the tool is always answered.
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint>;
+
+    /// [`RigidSurface::closest`] without the Hessian: `Some` exactly when
+    /// `closest(x, max_distance)` is, with the same distance and normal,
+    /// bit for bit. The default takes them from `closest`; the analytic
+    /// shapes skip the Hessian (and its rotation into the world frame).
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        self.closest(x, max_distance)
+            .map(|point| SurfaceNormal::from(&point))
+    }
+
+    /// A lower bound `c ≤ d(x)` \[mm\] on the signed distance at `x`, for a
+    /// broad phase (`docs/contact.md`, "Explicit path"): a surface that
+    /// answers a finite value promises that its distance is 1-Lipschitz,
+    /// `|d(x) − d(x′)| ≤ |x − x′|`, and that `closest(x′, m)` is `None`
+    /// whenever `d(x′) > m`; so `c − |x′ − x| > m` (up to round-off)
+    /// means `closest(x′, m)` is `None`. The default, `−∞`, promises
+    /// nothing (the broad phase then checks the point every time): a mesh
+    /// tool, whose inside and open sheets are answered by other rules.
+    /// Cheap: the distance only.
+    #[inline]
+    fn clearance(&self, _x: &Vector3<f64>) -> f64 {
+        f64::NEG_INFINITY
+    }
 }

@@ -20,7 +20,7 @@
 
 use nalgebra::{Matrix2, Matrix3, Rotation3, Vector2, Vector3};
 
-use super::{RigidSurface, SurfacePoint};
+use super::{RigidSurface, SurfaceNormal, SurfacePoint};
 
 /// Relative size of the singular sets: a query closer than
 /// `SINGULAR_FRACTION × (the shape's radius)` to a point or line where the
@@ -297,6 +297,26 @@ impl<S: RigidSurface> RigidSurface for Placed<S> {
             .closest(&local, max_distance)
             .map(|point| self.placement.surface_point_to_world(&point))
     }
+
+    /// The distance and `n_w = R n`, as [`RigidSurface::closest`] gives
+    /// them, without rotating the Hessian.
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        let local = self.placement.to_local(x);
+        self.shape
+            .closest_normal(&local, max_distance)
+            .map(|point| SurfaceNormal {
+                distance: point.distance,
+                normal: self.placement.rotation * point.normal,
+            })
+    }
+
+    /// The shape's clearance at the local point (a rigid placement keeps
+    /// distances).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        self.shape.clearance(&self.placement.to_local(x))
+    }
 }
 
 /// A borrowed surface answers as the surface (so `Placed<&dyn RigidSurface>`
@@ -306,6 +326,16 @@ impl<S: RigidSurface + ?Sized> RigidSurface for &S {
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
         (**self).closest(x, max_distance)
     }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        (**self).closest_normal(x, max_distance)
+    }
+
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        (**self).clearance(x)
+    }
 }
 
 /// A boxed surface answers as the surface (so `Placed<Box<dyn RigidSurface>>`
@@ -314,6 +344,16 @@ impl<S: RigidSurface + ?Sized> RigidSurface for Box<S> {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
         (**self).closest(x, max_distance)
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        (**self).closest_normal(x, max_distance)
+    }
+
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        (**self).clearance(x)
     }
 }
 
@@ -379,7 +419,7 @@ fn revolve(x: &Vector3<f64>, rho: f64, m: &Meridian) -> SurfacePoint {
     let e_rho = Vector3::new(x.x / rho, x.y / rho, 0.0);
     let e_phi = Vector3::new(-x.y / rho, x.x / rho, 0.0);
     let e_z = Vector3::z();
-    let normal = e_rho * m.gradient.x + e_z * m.gradient.y;
+    let normal = revolve_normal(x, rho, &m.gradient);
     let h = &m.hessian;
     let rho_z = e_rho * e_z.transpose();
     let hessian = e_rho * e_rho.transpose() * h[(0, 0)]
@@ -390,6 +430,25 @@ fn revolve(x: &Vector3<f64>, rho: f64, m: &Meridian) -> SurfacePoint {
         distance: m.distance,
         normal,
         hessian,
+    }
+}
+
+/// The normal `d_ρ e_ρ + d_z e_z` of a surface of revolution at `x`
+/// (`ρ > 0`), the one [`revolve`] gives.
+#[inline]
+fn revolve_normal(x: &Vector3<f64>, rho: f64, gradient: &Vector2<f64>) -> Vector3<f64> {
+    let e_rho = Vector3::new(x.x / rho, x.y / rho, 0.0);
+    e_rho * gradient.x + Vector3::z() * gradient.y
+}
+
+/// A clearance for non-finite points: none (never culled by a broad
+/// phase).
+#[inline]
+fn finite_or_none(distance: f64) -> f64 {
+    if distance.is_finite() {
+        distance
+    } else {
+        f64::NEG_INFINITY
     }
 }
 
@@ -416,6 +475,16 @@ impl RigidSurface for Plane {
             normal: Vector3::z(),
             hessian: Matrix3::zeros(),
         })
+    }
+
+    /// `d = z` (1-Lipschitz).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        if all_finite(x) {
+            x.z
+        } else {
+            f64::NEG_INFINITY
+        }
     }
 }
 
@@ -470,6 +539,30 @@ impl RigidSurface for Sphere {
             normal: n * sign,
             hessian: (Matrix3::identity() - n * n.transpose()) * (sign / r),
         })
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        let r = x.norm();
+        if !r.is_finite() {
+            return None;
+        }
+        let sign = self.side.sign();
+        let distance = sign * (r - self.radius);
+        if distance > max_distance || r <= SINGULAR_FRACTION * self.radius {
+            return None;
+        }
+        let n = x / r;
+        Some(SurfaceNormal {
+            distance,
+            normal: n * sign,
+        })
+    }
+
+    /// `±(|x| − R)` (1-Lipschitz).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        finite_or_none(self.side.sign() * (x.norm() - self.radius))
     }
 }
 
@@ -533,6 +626,29 @@ impl RigidSurface for Cylinder {
             hessian: Matrix2::zeros(),
         };
         Some(revolve(x, rho, &meridian))
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        if !all_finite(x) {
+            return None;
+        }
+        let rho = radial(x);
+        let sign = self.side.sign();
+        let distance = sign * (rho - self.radius);
+        if distance > max_distance || rho <= SINGULAR_FRACTION * self.radius {
+            return None;
+        }
+        Some(SurfaceNormal {
+            distance,
+            normal: revolve_normal(x, rho, &Vector2::new(sign, 0.0)),
+        })
+    }
+
+    /// `±(ρ − R)` (1-Lipschitz).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        finite_or_none(self.side.sign() * (radial(x) - self.radius))
     }
 }
 
@@ -610,6 +726,35 @@ impl RigidSurface for Torus {
         }
         let meridian = circle_meridian(q, self.minor_radius).scaled(sign);
         Some(revolve(x, rho, &meridian))
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        if !all_finite(x) {
+            return None;
+        }
+        let rho = radial(x);
+        let q = Vector2::new(rho - self.major_radius, x.z);
+        let s = q.norm();
+        let sign = self.side.sign();
+        if sign * (s - self.minor_radius) > max_distance
+            || rho <= SINGULAR_FRACTION * self.major_radius
+            || s <= SINGULAR_FRACTION * self.minor_radius
+        {
+            return None;
+        }
+        let meridian = circle_meridian(q, self.minor_radius).scaled(sign);
+        Some(SurfaceNormal {
+            distance: meridian.distance,
+            normal: revolve_normal(x, rho, &meridian.gradient),
+        })
+    }
+
+    /// `±(s − r)`, `s` the distance to the core circle (1-Lipschitz).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        let q = Vector2::new(radial(x) - self.major_radius, x.z);
+        finite_or_none(self.side.sign() * (q.norm() - self.minor_radius))
     }
 }
 
@@ -726,5 +871,32 @@ impl RigidSurface for PlateWithHole {
             return None;
         }
         Some(revolve(x, rho, &meridian))
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        if !all_finite(x) || x.z > max_distance {
+            return None;
+        }
+        let rho = radial(x);
+        let meridian = self.meridian(rho, x.z);
+        if meridian.distance > max_distance || rho <= SINGULAR_FRACTION * self.opening_radius {
+            return None;
+        }
+        Some(SurfaceNormal {
+            distance: meridian.distance,
+            normal: revolve_normal(x, rho, &meridian.gradient),
+        })
+    }
+
+    /// The meridian distance of the four zones: continuous, and of unit
+    /// gradient in each zone, so 1-Lipschitz (and `ρ` is 1-Lipschitz in
+    /// `x`).
+    #[inline]
+    fn clearance(&self, x: &Vector3<f64>) -> f64 {
+        if !all_finite(x) {
+            return f64::NEG_INFINITY;
+        }
+        self.meridian(radial(x), x.z).distance
     }
 }

@@ -28,7 +28,7 @@ use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
     PenaltyContact, PenaltyState, couple_tool_translation, max_curvature,
 };
-use crate::contact::{RigidSurface, SurfacePoint};
+use crate::contact::{RigidSurface, SurfaceNormal};
 
 /// Nodes per task of the parallel node loops.
 const NODE_CHUNK: usize = 256;
@@ -38,6 +38,49 @@ const NODE_CHUNK: usize = 256;
 /// surface culls them). Large against any motion within one time
 /// increment or one Newton iteration's contact change.
 const CULL_MARGIN: f64 = 1.0;
+
+/// Round-off allowance of the explicit broad phase \[mm\], absolute part:
+/// a node is skipped only when its clearance bound exceeds the cull
+/// distance by this much. Far above the round-off of a distance query on
+/// millimetre coordinates (~1e-13 mm), far below any contact scale.
+const CLEARANCE_TOLERANCE: f64 = 1e-6;
+
+/// The broad phase of one node against the tool (explicit path): the
+/// relative position `centre` where the tool's clearance was last taken,
+/// and `slack = clearance − cull distance − tolerance` there. While
+/// `|y − centre| < slack` the node is farther than the cull distance from
+/// the tool (the distance is 1-Lipschitz), so the query would answer
+/// `None`: the node is open without asking (`docs/contact.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Clearance {
+    centre: Vector3<f64>,
+    slack: f64,
+}
+
+impl Clearance {
+    /// No bound yet: the node is checked.
+    const UNKNOWN: Self = Self {
+        centre: Vector3::new(0.0, 0.0, 0.0),
+        slack: f64::NEG_INFINITY,
+    };
+
+    /// `true` when `y` is certainly beyond the cull distance.
+    #[inline]
+    fn far(&self, y: &Vector3<f64>) -> bool {
+        self.slack > 0.0 && (y - self.centre).norm_squared() < self.slack * self.slack
+    }
+
+    /// The bound from a clearance `clearance` at `y` for the cull distance
+    /// `cull`.
+    #[inline]
+    fn at(y: &Vector3<f64>, clearance: f64, cull: f64) -> Self {
+        let tolerance = CLEARANCE_TOLERANCE + 1e-12 * (y.amax() + clearance.abs());
+        Self {
+            centre: *y,
+            slack: clearance - cull - tolerance,
+        }
+    }
+}
 
 /// The per-node figures a user sees (VTU fields).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -107,8 +150,11 @@ pub struct ToolContact {
     /// trapezoidal work `−½ (F_{n−1} + F_n)·Δy`, the rule the solver's
     /// balance follows).
     damped: Vec<(f64, Vector3<f64>)>,
-    /// Per node: the last explicit curvature bound of the tool there.
-    curvatures: Vec<f64>,
+    /// Per node: the explicit broad phase's bound.
+    clearances: Vec<Clearance>,
+    /// Whether the explicit path uses the broad phase (on by default; off
+    /// queries every node every increment, for comparisons).
+    broad_phase: bool,
     partials: Vec<f64>,
     outputs: Vec<NodeContact>,
     /// Friction work of the accepted quasi-static steps [N·mm].
@@ -153,7 +199,8 @@ impl ToolContact {
             springs: Vec::new(),
             dashpots: Vec::new(),
             damped: vec![(0.0, Vector3::zeros()); n],
-            curvatures: vec![0.0; n],
+            clearances: vec![Clearance::UNKNOWN; n],
+            broad_phase: true,
             partials: vec![0.0; n.div_ceil(NODE_CHUNK)],
             outputs: vec![
                 NodeContact {
@@ -198,6 +245,22 @@ impl ToolContact {
     /// plies resist its motion.
     pub fn tool_force(&self) -> f64 {
         self.tool_force
+    }
+
+    /// Turns the explicit broad phase on (the default) or off. Off, every
+    /// node is queried against the tool every increment; the results are
+    /// the same bit for bit (the broad phase skips only nodes the query
+    /// would cull), so this is for tests and timings.
+    pub fn set_broad_phase(&mut self, on: bool) {
+        self.broad_phase = on;
+        self.clearances.fill(Clearance::UNKNOWN);
+    }
+
+    /// Nodes whose explicit broad-phase bound holds them beyond the cull
+    /// distance at their last bound (skipped until they have moved that
+    /// far relative to the tool).
+    pub fn bounded_far(&self) -> usize {
+        self.clearances.iter().filter(|c| c.slack > 0.0).count()
     }
 
     /// The relative position `y = x − q d` of node slot `i` at `u`.
@@ -437,9 +500,14 @@ impl Term for ToolContact {
         self.explicit = (0..self.nodes.len())
             .map(|i| PenaltyState::new(&self.relative(i, state.u)))
             .collect();
+        self.clearances.fill(Clearance::UNKNOWN);
         Ok(())
     }
 
+    /// Per node: the broad phase (a node certainly beyond the cull
+    /// distance is open without a query), else the first-order query
+    /// ([`RigidSurface::closest_normal`]) and the penalty kernel; the
+    /// normal dashpot; the force on the tool's dof reduced in chunk order.
     fn explicit_forces(&mut self, state: &State, out: &mut [f64]) -> Result<(), TermFailure> {
         let u = state.u;
         let n = self.nodes.len();
@@ -447,6 +515,7 @@ impl Term for ToolContact {
         let (node_out, tool_out) = out.split_at_mut(4 * n);
         let surface = &*self.surface;
         let direction = self.direction;
+        let broad_phase = self.broad_phase;
         let (nodes, reference, offsets, springs, dashpots) = (
             &self.nodes,
             &self.reference,
@@ -460,18 +529,18 @@ impl Term for ToolContact {
             .par_chunks_mut(4 * NODE_CHUNK)
             .zip(self.explicit.par_chunks_mut(NODE_CHUNK))
             .zip(self.outputs.par_chunks_mut(NODE_CHUNK))
-            .zip(self.curvatures.par_chunks_mut(NODE_CHUNK))
+            .zip(self.clearances.par_chunks_mut(NODE_CHUNK))
             .zip(self.damped.par_chunks_mut(NODE_CHUNK))
             .zip(self.partials.par_iter_mut())
             .enumerate()
             .for_each(
-                |(chunk, (((((f, states), outputs), curvatures), damped), partial))| {
+                |(chunk, (((((f, states), outputs), clearances), damped), partial))| {
                     let mut sum = 0.0;
-                    for (j, ((((fi, s), o), c), dissipated)) in f
+                    for (j, ((((fi, s), o), clearance), dissipated)) in f
                         .chunks_exact_mut(4)
                         .zip(states.iter_mut())
                         .zip(outputs.iter_mut())
-                        .zip(curvatures.iter_mut())
+                        .zip(clearances.iter_mut())
                         .zip(damped.iter_mut())
                         .enumerate()
                     {
@@ -480,8 +549,20 @@ impl Term for ToolContact {
                         let y = reference[i]
                             + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
                             - q * direction;
-                        let point: Option<SurfacePoint> =
-                            surface.closest(&y, offsets[i] + CULL_MARGIN);
+                        let cull = offsets[i] + CULL_MARGIN;
+                        let point: Option<SurfaceNormal> = if broad_phase && clearance.far(&y) {
+                            None
+                        } else {
+                            let point = surface.closest_normal(&y, cull);
+                            if broad_phase {
+                                let bound = match &point {
+                                    Some(p) => p.distance,
+                                    None => surface.clearance(&y),
+                                };
+                                *clearance = Clearance::at(&y, bound, cull);
+                            }
+                            point
+                        };
                         if point.is_none()
                             && s.status == ContactStatus::Open
                             && s.spring == Vector3::zeros()
@@ -494,7 +575,7 @@ impl Term for ToolContact {
                             continue;
                         }
                         let motion = y - s.previous_position;
-                        match springs[i].update(s, &y, point.as_ref()) {
+                        match springs[i].update_trusted(s, &y, point.as_ref()) {
                             Ok(r) => {
                                 let mut residual = r.residual;
                                 // Normal dashpot on the approach velocity while in
@@ -517,7 +598,6 @@ impl Term for ToolContact {
                                 o.friction_force = r.tangential_force.norm();
                                 o.gap = r.gap;
                                 o.slip = s.slip_length;
-                                *c = point.map_or(0.0, |p| max_curvature(&p.hessian));
                             }
                             Err(_) => {
                                 first_failure.fetch_min(i, Ordering::Relaxed);
@@ -539,7 +619,11 @@ impl Term for ToolContact {
 
     /// `max_n ω_n²` of the contact springs (with the tool's curvature and
     /// the current forces, `docs/contact-kernels.md`), and for a floating
-    /// tool `Σ k_n / M` of its dof on all its springs.
+    /// tool `Σ k_n / M` of its dof on all its springs. The curvature counts
+    /// only where the node presses into the tool (`p > 0` or `|t| > 0`):
+    /// there the tool is queried again at the node's last relative position
+    /// (the one [`Term::explicit_forces`] saw, so the same answer), which
+    /// keeps the Hessian out of the force pass.
     fn frequency_bound(&self, _state: &State, masses: &Masses) -> Result<f64, TermFailure> {
         if self.springs.is_empty() {
             return Ok(0.0);
@@ -550,12 +634,20 @@ impl Term for ToolContact {
             let spring = &self.springs[i];
             let o = &self.outputs[i];
             let penetration = if o.gap < 0.0 { -o.gap } else { 0.0 };
+            let curvature = if penetration > 0.0 || o.friction_force > 0.0 {
+                let y = &self.explicit[i].previous_position;
+                self.surface
+                    .closest(y, self.offsets[i] + CULL_MARGIN)
+                    .map_or(0.0, |p| max_curvature(&p.hessian))
+            } else {
+                0.0
+            };
             let w2 = spring
                 .frequency_squared(
                     masses.node[self.nodes[i]],
                     penetration,
                     o.friction_force,
-                    self.curvatures[i],
+                    curvature,
                 )
                 .map_err(|e| self.failure(i, e.to_string()))?;
             max = max.max(w2);

@@ -90,6 +90,14 @@ impl Model {
             .filter_map(|t| (t.as_ref() as &dyn std::any::Any).downcast_ref::<T>())
     }
 
+    /// Every term of type `T`, in order, mutably (to change a term's
+    /// settings after the model is built).
+    pub fn terms_of_mut<T: Term + 'static>(&mut self) -> impl Iterator<Item = &mut T> {
+        self.terms
+            .iter_mut()
+            .filter_map(|t| (t.as_mut() as &mut dyn std::any::Any).downcast_mut::<T>())
+    }
+
     /// `true` when every term's tangent is symmetric.
     pub fn symmetric(&self) -> bool {
         self.terms.iter().all(|t| t.symmetric())

@@ -36,7 +36,7 @@ use super::{
     ContactError, ContactStatus, check_point, check_scalar, check_vector, finite_result,
     non_negative, positive,
 };
-use crate::contact::SurfacePoint;
+use crate::contact::{SurfaceNormal, SurfacePoint};
 
 /// The central-difference limit for one contact spring on a node of mass
 /// `mass` \[t\] (doc Sec. "Stiffness limit"): `k = c · 4 m / Δt²` [N/mm] for
@@ -220,6 +220,76 @@ impl PenaltyContact {
         if let Some(point) = point {
             check_point(point)?;
         }
+        let step = self.respond(state, y, point.map(SurfaceNormal::from).as_ref());
+        let response = &step.response;
+        finite_result("residual", response.residual.iter())?;
+        finite_result("tangential spring", response.next_spring.iter())?;
+        finite_result(
+            "energy",
+            [
+                response.dissipated,
+                response.normal_energy,
+                response.tangential_energy,
+            ]
+            .iter(),
+        )?;
+        finite_result(
+            "accumulated slip",
+            [step.slip_length, step.dissipated].iter(),
+        )?;
+        Ok(step.commit(state, y))
+    }
+
+    /// [`PenaltyContact::update`] for the time loop, from the first-order
+    /// surface answer ([`crate::contact::RigidSurface::closest_normal`]):
+    /// the same response and state, bit for bit, without the input checks.
+    /// The caller vouches for its inputs where they enter: `state` as left
+    /// by this kernel (or [`PenaltyState::new`] at a finite position) and
+    /// `point` from a surface that keeps the [`SurfacePoint`] contract
+    /// (finite, unit normal; checked in debug builds). The outputs are
+    /// still checked, by one sum: a non-finite `y`, distance or normal, or
+    /// an overflow, is an error and leaves the state unchanged.
+    ///
+    /// # Errors
+    /// [`ContactError::NonFiniteResult`] when any output (or input) is not
+    /// finite.
+    #[inline]
+    pub fn update_trusted(
+        &self,
+        state: &mut PenaltyState,
+        y: &Vector3<f64>,
+        point: Option<&SurfaceNormal>,
+    ) -> Result<PenaltyResponse, ContactError> {
+        debug_assert!(point.is_none_or(|p| (p.normal.norm() - 1.0).abs() <= 1e-6));
+        let step = self.respond(state, y, point);
+        let r = &step.response;
+        // Non-finite values (NaN, ±∞) survive a sum; finite ones overflow
+        // it only where the response itself is out of range.
+        let probe = r.residual.sum()
+            + r.next_spring.sum()
+            + r.normal.sum()
+            + y.sum()
+            + r.dissipated
+            + r.normal_energy
+            + r.tangential_energy
+            + step.slip_length
+            + step.dissipated
+            + if r.gap.is_infinite() { 0.0 } else { r.gap };
+        if !probe.is_finite() {
+            return Err(ContactError::NonFiniteResult { name: "response" });
+        }
+        Ok(step.commit(state, y))
+    }
+
+    /// The response at `y` and the state's new running sums (Eq. E1–E7),
+    /// not yet written to the state.
+    #[inline(always)]
+    fn respond(
+        &self,
+        state: &PenaltyState,
+        y: &Vector3<f64>,
+        point: Option<&SurfaceNormal>,
+    ) -> PenaltyStep {
         let k_t = self.tangential_stiffness;
         let motion = y - state.previous_position;
         let (gap, normal) = match point {
@@ -288,28 +358,34 @@ impl PenaltyContact {
                 tangential_energy: 0.0,
             }
         };
-        finite_result("residual", response.residual.iter())?;
-        finite_result("tangential spring", response.next_spring.iter())?;
-        finite_result(
-            "energy",
-            [
-                response.dissipated,
-                response.normal_energy,
-                response.tangential_energy,
-            ]
-            .iter(),
-        )?;
-        let slip_length = state.slip_length + response.plastic_slip.norm();
-        let total_dissipated = state.dissipated + response.dissipated;
-        finite_result("accumulated slip", [slip_length, total_dissipated].iter())?;
+        PenaltyStep {
+            slip_length: state.slip_length + response.plastic_slip.norm(),
+            dissipated: state.dissipated + response.dissipated,
+            response,
+        }
+    }
+}
+
+/// A response with the state's new running sums, before they are written.
+struct PenaltyStep {
+    response: PenaltyResponse,
+    slip_length: f64,
+    dissipated: f64,
+}
+
+impl PenaltyStep {
+    /// Writes the step into `state` (now at `y`) and gives the response.
+    #[inline]
+    fn commit(self, state: &mut PenaltyState, y: &Vector3<f64>) -> PenaltyResponse {
+        let response = self.response;
         state.spring = response.next_spring;
         state.previous_position = *y;
         state.status = response.status;
         state.normal_energy = response.normal_energy;
         state.tangential_energy = response.tangential_energy;
-        state.dissipated = total_dissipated;
-        state.slip_length = slip_length;
-        Ok(response)
+        state.dissipated = self.dissipated;
+        state.slip_length = self.slip_length;
+        response
     }
 }
 

@@ -164,6 +164,13 @@ pub struct ExplicitResult {
     pub initial_critical_time_step: f64,
     /// Smallest and largest step taken \[s\] (outputs may shorten a step).
     pub time_step_range: (f64, f64),
+    /// Smallest and largest stable step in use \[s\] (the safety factor
+    /// times the estimates, or the fixed step): `time_step_range` without
+    /// the steps shortened to land on an output.
+    pub stable_step_range: (f64, f64),
+    /// Steps shortened to land on an output time, and the shortest of them
+    /// \[s\] (`∞` when none was).
+    pub landing_steps: (usize, f64),
     /// Masses.
     pub mass: MassSummary,
     /// Largest `KE / IE` once `λ` passed 10 % of its final value.
@@ -415,6 +422,8 @@ fn integrate(
     let mut previous_step = 0.0;
     let mut increments = 0usize;
     let mut step_range = (f64::INFINITY, 0.0_f64);
+    let mut stable_range = (f64::INFINITY, 0.0_f64);
+    let mut landing_steps = (0usize, f64::INFINITY);
     let mut max_kinetic_ratio = 0.0_f64;
     let mut max_balance = 0.0_f64;
     let mut next_output = 0;
@@ -456,6 +465,10 @@ fn integrate(
         previous_step = dt;
         increments += 1;
         step_range = (step_range.0.min(dt), step_range.1.max(dt));
+        stable_range = (stable_range.0.min(time_step), stable_range.1.max(time_step));
+        if dt < time_step {
+            landing_steps = (landing_steps.0 + 1, landing_steps.1.min(dt));
+        }
 
         let clock = Instant::now();
         let now = (load_next, fraction_at(time));
@@ -583,6 +596,12 @@ fn integrate(
         } else {
             (0.0, 0.0)
         },
+        stable_step_range: if increments > 0 {
+            stable_range
+        } else {
+            (0.0, 0.0)
+        },
+        landing_steps,
         mass: system.mass,
         max_kinetic_ratio,
         max_relative_balance_error: max_balance,
