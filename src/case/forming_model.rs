@@ -40,6 +40,22 @@ pub struct BuiltPly {
     pub thickness: f64,
 }
 
+impl BuiltPly {
+    /// The current position `x + u` of each of the ply's nodes \[mm\], from
+    /// the model's displacement `u` (all dofs).
+    pub fn deformed_positions(&self, u: &[f64]) -> Vec<[f64; 3]> {
+        self.mesh
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(n, x)| {
+                let g = self.node_offset + n;
+                [x.x + u[3 * g], x.y + u[3 * g + 1], x.z + u[3 * g + 2]]
+            })
+            .collect()
+    }
+}
+
 /// A tool of the built model.
 #[derive(Debug, Clone)]
 pub struct BuiltTool {

@@ -537,14 +537,9 @@ pub fn write_maps(
     let ply = &built.plies[p];
     let offset = ply.node_offset;
     let points: Vec<[f64; 2]> = ply
-        .mesh
-        .nodes
+        .deformed_positions(u)
         .iter()
-        .enumerate()
-        .map(|(n, x)| {
-            let g = offset + n;
-            [x.x + u[3 * g], x.y + u[3 * g + 1]]
-        })
+        .map(|x| [x[0], x[1]])
         .collect();
     // Painter's order for the camera: the triangles farthest from it first.
     let height = |e: usize| {

@@ -506,16 +506,7 @@ fn write_ply_state(
     let u = snapshot.u;
     let offset = ply.node_offset;
     let count = ply.mesh.nodes.len();
-    let points: Vec<[f64; 3]> = ply
-        .mesh
-        .nodes
-        .iter()
-        .enumerate()
-        .map(|(n, x)| {
-            let g = offset + n;
-            [x.x + u[3 * g], x.y + u[3 * g + 1], x.z + u[3 * g + 2]]
-        })
-        .collect();
+    let points = ply.deformed_positions(u);
     let displacement: Vec<[f64; 3]> = (0..count)
         .map(|n| {
             let g = offset + n;
