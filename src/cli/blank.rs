@@ -556,8 +556,8 @@ pub fn write_maps(
     }
     let triangles: Vec<[usize; 3]> = order.iter().map(|&e| ply.mesh.triangles[e]).collect();
     let view = match case.camera {
-        MapView::Below => "seen from below",
-        MapView::Above => "seen from above",
+        MapView::Below => "from below",
+        MapView::Above => "from above",
     };
     let true_values: [Vec<f64>; 3] = [
         order.iter().map(|&e| fields[e].shear_angle_deg).collect(),
@@ -579,10 +579,10 @@ pub fn write_maps(
             .collect(),
     ];
     let labels = ["γ [deg]", "E22 = I8 − 1 [-]", "E⊥ = I11 − 1 [-]"];
-    let names = ["shear angle γ", "E22", "E⊥"];
+    let names = ["γ", "E22", "E⊥"];
     for (values, path, what) in [
         (&true_values, paths.0, "formed ply"),
-        (&dic_values, paths.1, "2D image correlation (projection)"),
+        (&dic_values, paths.1, "2D DIC view"),
     ] {
         let maps: Vec<ContourMap> = (0..3)
             .map(|k| ContourMap {
