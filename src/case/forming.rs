@@ -400,12 +400,8 @@ pub struct ProbeSpec {
 pub struct ZoneSpec {
     /// The ply.
     pub ply: usize,
-    /// Name.
-    pub name: String,
-    /// Centre `(x, y)` on the blank \[mm\].
-    pub centre: [f64; 2],
-    /// Size `(x, y)` \[mm\].
-    pub size: [f64; 2],
+    /// The window: name, centre and size on the blank.
+    pub zone: crate::post::forming::Zone,
 }
 
 /// The default size of a zone: the paper's 20 × 20 mm windows \[mm\].
@@ -510,6 +506,18 @@ pub fn is_forming(text: &str) -> bool {
 }
 
 /// A 3-vector key.
+/// A list of numbers as the case file writes it, `[a, b, c]` (messages).
+fn shown_list(values: &[f64]) -> String {
+    format!(
+        "[{}]",
+        values
+            .iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
 fn vector3(
     check: &TomlChecker,
     v: &Spanned<Vec<f64>>,
@@ -517,14 +525,7 @@ fn vector3(
     unit: bool,
 ) -> Result<Vector3<f64>, ConfigError> {
     let values = v.get_ref();
-    let shown = format!(
-        "[{}]",
-        values
-            .iter()
-            .map(|x| x.to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    let shown = shown_list(values);
     if values.len() != 3 || values.iter().any(|x| !x.is_finite()) {
         return Err(check.invalid(
             check.line_of(v),
@@ -842,14 +843,7 @@ impl FormingCase {
                     Err(check.invalid(
                         check.line_of(v),
                         &key(k),
-                        format!(
-                            "[{}]",
-                            values
-                                .iter()
-                                .map(|x| x.to_string())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ),
+                        shown_list(values),
                         if positive {
                             "two sizes > 0 mm [x, y]"
                         } else {
@@ -862,7 +856,7 @@ impl FormingCase {
                 .name
                 .clone()
                 .unwrap_or_else(|| char::from(b'A' + (i % 26) as u8).to_string());
-            if zones.iter().any(|q| q.name == name) {
+            if zones.iter().any(|q| q.zone.name == name) {
                 return Err(check.invalid(
                     check.line_of(&z.centre),
                     &key("name"),
@@ -872,11 +866,13 @@ impl FormingCase {
             }
             zones.push(ZoneSpec {
                 ply: ply_index(&z.ply, &key("ply"))?,
-                name,
-                centre: pair(&z.centre, "centre", false)?,
-                size: match &z.size {
-                    None => DEFAULT_ZONE_SIZE,
-                    Some(v) => pair(v, "size", true)?,
+                zone: crate::post::forming::Zone {
+                    name,
+                    centre: pair(&z.centre, "centre", false)?,
+                    size: match &z.size {
+                        None => DEFAULT_ZONE_SIZE,
+                        Some(v) => pair(v, "size", true)?,
+                    },
                 },
             });
         }

@@ -16,8 +16,8 @@ use crate::post::contour::{ContourMap, write_contour_png_viewed};
 use crate::post::csv::write_csv;
 use crate::post::fields::ElementFields;
 use crate::post::forming::{
-    DrawInPoint, StrainMeasures, Zone, boundary_displacement, draw_in, draw_in_points,
-    outer_boundary, strain_measure, strain_measures, weighted_mean_std,
+    DrawInPoint, StrainMeasures, boundary_displacement, draw_in, draw_in_points, outer_boundary,
+    strain_measure, strain_measures, weighted_mean_std,
 };
 use crate::post::plot::{Panel, Series, Series as Outline, write_outlines_png, write_panels};
 
@@ -51,6 +51,8 @@ pub struct Readout {
     /// The tool whose displacement is the stroke (the prescribed tool that
     /// moves farthest), if any.
     pub stroke_tool: Option<usize>,
+    /// The floating tools, whose lift is reported.
+    pub floating_tools: Vec<usize>,
 }
 
 impl Readout {
@@ -80,24 +82,17 @@ impl Readout {
         }
         let mut zones = Vec::new();
         for (i, z) in case.zones.iter().enumerate() {
-            let membrane = &built.plies[z.ply].membrane;
-            let all: Vec<usize> = (0..membrane.triangles.len()).collect();
-            let zone = Zone {
-                name: z.name.clone(),
-                centre: z.centre,
-                size: z.size,
-            };
-            let elements = zone.elements(membrane, &all);
+            let elements = z.zone.elements(&built.plies[z.ply].membrane);
             if elements.is_empty() {
                 return Err(format!(
                     "{}: zone[{i}] (\"{}\"): no element of ply \"{}\" has its centroid in the window centred at [{}, {}] mm of size [{}, {}] mm; expected a window on the blank",
                     case.source,
-                    z.name,
+                    z.zone.name,
                     built.plies[z.ply].name,
-                    z.centre[0],
-                    z.centre[1],
-                    z.size[0],
-                    z.size[1]
+                    z.zone.centre[0],
+                    z.zone.centre[1],
+                    z.zone.size[0],
+                    z.zone.size[1]
                 ));
             }
             zones.push(elements);
@@ -112,10 +107,18 @@ impl Readout {
             })
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(i, _)| i);
+        let floating_tools = built
+            .tools
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| matches!(t.spec.motion, ToolMotion::Floating { .. }))
+            .map(|(i, _)| i)
+            .collect();
         Ok(Self {
             plies,
             zones,
             stroke_tool,
+            floating_tools,
         })
     }
 
@@ -337,11 +340,10 @@ pub fn write_forming_history(
     header_status: &str,
     stroke_label: &str,
 ) -> Result<(), String> {
-    let floating: Vec<&str> = built
-        .tools
+    let floating: Vec<&str> = readout
+        .floating_tools
         .iter()
-        .filter(|t| matches!(t.spec.motion, ToolMotion::Floating { .. }))
-        .map(|t| t.spec.name.as_str())
+        .map(|&t| built.tools[t].spec.name.as_str())
         .collect();
     let stroke_name = readout
         .stroke_tool
@@ -359,10 +361,10 @@ pub fn write_forming_history(
         }
     }
     for z in &case.zones {
-        header.push(format!("zone {} shear angle mean [deg]", z.name));
-        header.push(format!("zone {} shear angle std [deg]", z.name));
-        header.push(format!("zone {} E22 mean [-]", z.name));
-        header.push(format!("zone {} E_perp mean [-]", z.name));
+        header.push(format!("zone {} shear angle mean [deg]", z.zone.name));
+        header.push(format!("zone {} shear angle std [deg]", z.zone.name));
+        header.push(format!("zone {} E22 mean [-]", z.zone.name));
+        header.push(format!("zone {} E_perp mean [-]", z.zone.name));
     }
     let data: Vec<Vec<f64>> = rows
         .iter()
@@ -391,7 +393,12 @@ pub fn write_forming_history(
         .map(|z| {
             format!(
                 "{} on ply \"{}\" centred at [{}, {}] mm, {} x {} mm",
-                z.name, built.plies[z.ply].name, z.centre[0], z.centre[1], z.size[0], z.size[1]
+                z.zone.name,
+                built.plies[z.ply].name,
+                z.zone.centre[0],
+                z.zone.centre[1],
+                z.zone.size[0],
+                z.zone.size[1]
             )
         })
         .collect();
@@ -457,9 +464,9 @@ pub fn write_forming_history(
                 .zones
                 .iter()
                 .enumerate()
-                .map(|(z, zone)| {
-                    curve(format!("zone {}", zone.name), &|r| {
-                        r.zones[z].shear_angle_mean
+                .map(|(k, spec)| {
+                    curve(format!("zone {}", spec.zone.name), &|r| {
+                        r.zones[k].shear_angle_mean
                     })
                 })
                 .collect(),
@@ -559,25 +566,28 @@ pub fn write_maps(
         MapView::Below => "from below",
         MapView::Above => "from above",
     };
-    let true_values: [Vec<f64>; 3] = [
-        order.iter().map(|&e| fields[e].shear_angle_deg).collect(),
-        order.iter().map(|&e| fields[e].e22).collect(),
-        order.iter().map(|&e| fields[e].e_perp).collect(),
-    ];
-    let dic_values: [Vec<f64>; 3] = [
-        order
-            .iter()
-            .map(|&e| dic[e].map_or(f64::NAN, |m| m.shear_angle_deg))
-            .collect(),
-        order
-            .iter()
-            .map(|&e| dic[e].map_or(f64::NAN, |m| m.e22))
-            .collect(),
-        order
-            .iter()
-            .map(|&e| dic[e].map_or(f64::NAN, |m| m.e_perp))
-            .collect(),
-    ];
+    // γ, E22, E⊥ in drawing order; NaN (grey) where not defined.
+    let columns = |measure: &dyn Fn(usize) -> Option<StrainMeasures>| -> [Vec<f64>; 3] {
+        let pick = |f: fn(&StrainMeasures) -> f64| {
+            order
+                .iter()
+                .map(|&e| measure(e).as_ref().map_or(f64::NAN, f))
+                .collect()
+        };
+        [
+            pick(|m| m.shear_angle_deg),
+            pick(|m| m.e22),
+            pick(|m| m.e_perp),
+        ]
+    };
+    let true_values = columns(&|e| {
+        Some(StrainMeasures {
+            shear_angle_deg: fields[e].shear_angle_deg,
+            e22: fields[e].e22,
+            e_perp: fields[e].e_perp,
+        })
+    });
+    let dic_values = columns(&|e| dic[e]);
     let labels = ["γ [deg]", "E22 = I8 − 1 [-]", "E⊥ = I11 − 1 [-]"];
     let names = ["γ", "E22", "E⊥"];
     for (values, path, what) in [

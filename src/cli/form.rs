@@ -239,7 +239,7 @@ impl Sink<'_> {
     fn stroke_force(&self, row: &FormingRow) -> f64 {
         self.readout
             .stroke_tool
-            .or(if row.tools.is_empty() { None } else { Some(0) })
+            .or((!row.tools.is_empty()).then_some(0))
             .map_or(0.0, |t| row.tools[t].force)
     }
 
@@ -298,11 +298,10 @@ impl Sink<'_> {
             .stroke_tool
             .map_or(load, |t| snapshot.u[self.built.tools[t].dof]);
         let lifts = self
-            .built
-            .tools
+            .readout
+            .floating_tools
             .iter()
-            .filter(|t| matches!(t.spec.motion, ToolMotion::Floating { .. }))
-            .map(|t| -snapshot.u[t.dof])
+            .map(|&t| -snapshot.u[self.built.tools[t].dof])
             .collect();
         FormingRow {
             load,
@@ -764,11 +763,11 @@ pub fn run_forming(
                 .readout
                 .stroke_tool
                 .map(|t| built.tools[t].spec.name.clone()),
-            floating_tools: built
-                .tools
+            floating_tools: sink
+                .readout
+                .floating_tools
                 .iter()
-                .filter(|t| matches!(t.spec.motion, ToolMotion::Floating { .. }))
-                .map(|t| t.spec.name.clone())
+                .map(|&t| built.tools[t].spec.name.clone())
                 .collect(),
             draw_in_points: sink
                 .readout
@@ -786,10 +785,10 @@ pub fn run_forming(
                 .iter()
                 .map(|z| {
                     (
-                        z.name.clone(),
+                        z.zone.name.clone(),
                         built.plies[z.ply].name.clone(),
-                        z.centre,
-                        z.size,
+                        z.zone.centre,
+                        z.zone.size,
                     )
                 })
                 .collect(),

@@ -441,6 +441,15 @@ fn revolve_normal(x: &Vector3<f64>, rho: f64, gradient: &Vector2<f64>) -> Vector
     e_rho * gradient.x + Vector3::z() * gradient.y
 }
 
+/// The distance and normal of [`revolve`] without its Hessian.
+#[inline]
+fn revolve_distance_normal(x: &Vector3<f64>, rho: f64, m: &Meridian) -> SurfaceNormal {
+    SurfaceNormal {
+        distance: m.distance,
+        normal: revolve_normal(x, rho, &m.gradient),
+    }
+}
+
 /// A clearance for non-finite points: none (never culled by a broad
 /// phase).
 #[inline]
@@ -521,9 +530,16 @@ impl Sphere {
     }
 }
 
-impl RigidSurface for Sphere {
+impl Sphere {
+    /// The query both [`RigidSurface`] answers share: `|x|`, the side's
+    /// sign, the distance and the unit radial direction, or `None` as
+    /// [`RigidSurface::closest`].
     #[inline]
-    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+    fn radial_query(
+        &self,
+        x: &Vector3<f64>,
+        max_distance: f64,
+    ) -> Option<(f64, f64, f64, Vector3<f64>)> {
         let r = x.norm();
         if !r.is_finite() {
             return None;
@@ -533,7 +549,14 @@ impl RigidSurface for Sphere {
         if distance > max_distance || r <= SINGULAR_FRACTION * self.radius {
             return None;
         }
-        let n = x / r;
+        Some((r, sign, distance, x / r))
+    }
+}
+
+impl RigidSurface for Sphere {
+    #[inline]
+    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+        let (r, sign, distance, n) = self.radial_query(x, max_distance)?;
         Some(SurfacePoint {
             distance,
             normal: n * sign,
@@ -543,16 +566,7 @@ impl RigidSurface for Sphere {
 
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        let r = x.norm();
-        if !r.is_finite() {
-            return None;
-        }
-        let sign = self.side.sign();
-        let distance = sign * (r - self.radius);
-        if distance > max_distance || r <= SINGULAR_FRACTION * self.radius {
-            return None;
-        }
-        let n = x / r;
+        let (_, sign, distance, n) = self.radial_query(x, max_distance)?;
         Some(SurfaceNormal {
             distance,
             normal: n * sign,
@@ -608,9 +622,10 @@ fn radial(x: &Vector3<f64>) -> f64 {
     (x.x * x.x + x.y * x.y).sqrt()
 }
 
-impl RigidSurface for Cylinder {
+impl Cylinder {
+    /// `ρ` and the meridian at `x`, or `None` as [`RigidSurface::closest`].
     #[inline]
-    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+    fn meridian_query(&self, x: &Vector3<f64>, max_distance: f64) -> Option<(f64, Meridian)> {
         if !all_finite(x) {
             return None;
         }
@@ -625,24 +640,21 @@ impl RigidSurface for Cylinder {
             gradient: Vector2::new(sign, 0.0),
             hessian: Matrix2::zeros(),
         };
+        Some((rho, meridian))
+    }
+}
+
+impl RigidSurface for Cylinder {
+    #[inline]
+    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
         Some(revolve(x, rho, &meridian))
     }
 
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if !all_finite(x) {
-            return None;
-        }
-        let rho = radial(x);
-        let sign = self.side.sign();
-        let distance = sign * (rho - self.radius);
-        if distance > max_distance || rho <= SINGULAR_FRACTION * self.radius {
-            return None;
-        }
-        Some(SurfaceNormal {
-            distance,
-            normal: revolve_normal(x, rho, &Vector2::new(sign, 0.0)),
-        })
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
+        Some(revolve_distance_normal(x, rho, &meridian))
     }
 
     /// `±(ρ − R)` (1-Lipschitz).
@@ -708,9 +720,10 @@ impl Torus {
     }
 }
 
-impl RigidSurface for Torus {
+impl Torus {
+    /// `ρ` and the meridian at `x`, or `None` as [`RigidSurface::closest`].
     #[inline]
-    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+    fn meridian_query(&self, x: &Vector3<f64>, max_distance: f64) -> Option<(f64, Meridian)> {
         if !all_finite(x) {
             return None;
         }
@@ -724,30 +737,21 @@ impl RigidSurface for Torus {
         {
             return None;
         }
-        let meridian = circle_meridian(q, self.minor_radius).scaled(sign);
+        Some((rho, circle_meridian(q, self.minor_radius).scaled(sign)))
+    }
+}
+
+impl RigidSurface for Torus {
+    #[inline]
+    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
         Some(revolve(x, rho, &meridian))
     }
 
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if !all_finite(x) {
-            return None;
-        }
-        let rho = radial(x);
-        let q = Vector2::new(rho - self.major_radius, x.z);
-        let s = q.norm();
-        let sign = self.side.sign();
-        if sign * (s - self.minor_radius) > max_distance
-            || rho <= SINGULAR_FRACTION * self.major_radius
-            || s <= SINGULAR_FRACTION * self.minor_radius
-        {
-            return None;
-        }
-        let meridian = circle_meridian(q, self.minor_radius).scaled(sign);
-        Some(SurfaceNormal {
-            distance: meridian.distance,
-            normal: revolve_normal(x, rho, &meridian.gradient),
-        })
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
+        Some(revolve_distance_normal(x, rho, &meridian))
     }
 
     /// `±(s − r)`, `s` the distance to the core circle (1-Lipschitz).
@@ -852,29 +856,14 @@ impl PlateWithHole {
     }
 }
 
-impl RigidSurface for PlateWithHole {
+impl PlateWithHole {
+    /// `ρ` and the meridian at `x`, or `None` as [`RigidSurface::closest`].
     #[inline]
-    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
-        if !all_finite(x) {
-            return None;
-        }
+    fn meridian_query(&self, x: &Vector3<f64>, max_distance: f64) -> Option<(f64, Meridian)> {
         // The signed distance is never below z (it is z on the face, at
         // the fillet |(ρ − c_ρ, z + r_f)| − r_f ≥ z, max(z, R_o − ρ) ≥ z at the
         // wall): the cheap rejection of the nodes lifted off a die or a
         // blankholder.
-        if x.z > max_distance {
-            return None;
-        }
-        let rho = radial(x);
-        let meridian = self.meridian(rho, x.z);
-        if meridian.distance > max_distance || rho <= SINGULAR_FRACTION * self.opening_radius {
-            return None;
-        }
-        Some(revolve(x, rho, &meridian))
-    }
-
-    #[inline]
-    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
         if !all_finite(x) || x.z > max_distance {
             return None;
         }
@@ -883,10 +872,21 @@ impl RigidSurface for PlateWithHole {
         if meridian.distance > max_distance || rho <= SINGULAR_FRACTION * self.opening_radius {
             return None;
         }
-        Some(SurfaceNormal {
-            distance: meridian.distance,
-            normal: revolve_normal(x, rho, &meridian.gradient),
-        })
+        Some((rho, meridian))
+    }
+}
+
+impl RigidSurface for PlateWithHole {
+    #[inline]
+    fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
+        Some(revolve(x, rho, &meridian))
+    }
+
+    #[inline]
+    fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        let (rho, meridian) = self.meridian_query(x, max_distance)?;
+        Some(revolve_distance_normal(x, rho, &meridian))
     }
 
     /// The meridian distance of the four zones: continuous, and of unit

@@ -204,12 +204,9 @@ pub struct Zone {
 }
 
 impl Zone {
-    /// The elements of `model` whose reference centroid lies in the zone,
-    /// among `elements`.
-    pub fn elements(&self, model: &MembraneModel, elements: &[usize]) -> Vec<usize> {
-        elements
-            .iter()
-            .copied()
+    /// The elements of `model` whose reference centroid lies in the zone.
+    pub fn elements(&self, model: &MembraneModel) -> Vec<usize> {
+        (0..model.triangles.len())
             .filter(|&e| {
                 let t = model.triangles[e];
                 let c = (model.nodes[t[0]] + model.nodes[t[1]] + model.nodes[t[2]]) / 3.0;

@@ -287,17 +287,18 @@ impl Bordered {
             return None;
         }
         let m = dense.len();
-        let mut sparse_index = vec![None; n];
-        let mut dense_index = vec![None; n];
+        // Each unknown's place in its block: `Ok(k)` the k-th sparse one,
+        // `Err(k)` the k-th dense one.
+        let mut slot: Vec<Result<usize, usize>> = Vec::with_capacity(n);
         let mut sparse = Vec::with_capacity(n - m);
-        for (j, index) in sparse_index.iter_mut().enumerate() {
-            if dense.binary_search(&j).is_err() {
-                *index = Some(sparse.len());
-                sparse.push(j);
+        for j in 0..n {
+            match dense.binary_search(&j) {
+                Ok(k) => slot.push(Err(k)),
+                Err(_) => {
+                    slot.push(Ok(sparse.len()));
+                    sparse.push(j);
+                }
             }
-        }
-        for (k, &j) in dense.iter().enumerate() {
-            dense_index[j] = Some(k);
         }
         let ns = sparse.len();
         // The sparse block's pattern and every entry's target.
@@ -306,20 +307,18 @@ impl Bordered {
         let mut block_rows = Vec::new();
         for j in 0..n {
             for &i in &row_idx[col_ptr[j]..col_ptr[j + 1]] {
-                let target = match (sparse_index[i], sparse_index[j]) {
-                    (Some(si), Some(_)) => {
+                let target = match (slot[i], slot[j]) {
+                    (Ok(si), Ok(_)) => {
                         block_rows.push(si);
                         Target::Sparse(block_rows.len() - 1)
                     }
-                    (Some(si), None) => Target::Right(dense_index[j].expect("dense") * ns + si),
-                    (None, Some(sj)) => Target::Below(dense_index[i].expect("dense") * ns + sj),
-                    (None, None) => Target::Corner(
-                        dense_index[i].expect("dense") * m + dense_index[j].expect("dense"),
-                    ),
+                    (Ok(si), Err(dj)) => Target::Right(dj * ns + si),
+                    (Err(di), Ok(sj)) => Target::Below(di * ns + sj),
+                    (Err(di), Err(dj)) => Target::Corner(di * m + dj),
                 };
                 targets.push(target);
             }
-            if let Some(sj) = sparse_index[j] {
+            if let Ok(sj) = slot[j] {
                 block_ptr[sj + 1] = block_rows.len();
             }
         }

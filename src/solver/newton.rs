@@ -805,15 +805,9 @@ pub fn solve_quasi_static(
             Stabilisation::Automatic => match &last_increment {
                 Some((previous, delta)) => {
                     // ‖v‖²_M with v the last step's Δu/Δλ.
-                    let v2: f64 = newton
-                        .assembler
-                        .dofs
-                        .free
-                        .iter()
-                        .zip(&newton.work.masses)
-                        .map(|(&d, m)| m * delta[d] * delta[d])
-                        .sum::<f64>()
-                        / (previous * previous);
+                    let v2 =
+                        mass_norm_squared(&newton.assembler.dofs.free, &newton.work.masses, delta)
+                            / (previous * previous);
                     if v2 > 0.0 && internal_energy > 0.0 {
                         boost * params.stabilisation_fraction * internal_energy / v2
                     } else {
@@ -865,15 +859,12 @@ pub fn solve_quasi_static(
                 load = target;
                 total_augmentations += solved.augmentations;
                 let stabilisation = (params.stabilisation != Stabilisation::Off).then(|| {
-                    let dissipated: f64 = newton.viscosity
-                        * newton
-                            .assembler
-                            .dofs
-                            .free
-                            .iter()
-                            .zip(&newton.work.masses)
-                            .map(|(&d, m)| m * delta[d] * delta[d])
-                            .sum::<f64>();
+                    let dissipated = newton.viscosity
+                        * mass_norm_squared(
+                            &newton.assembler.dofs.free,
+                            &newton.work.masses,
+                            &delta,
+                        );
                     dissipated_total += dissipated;
                     StabilisationRecord {
                         factor,
@@ -1018,4 +1009,12 @@ fn stabilisation_masses(model: &Model, dofs: &super::dofs::DofMap) -> Vec<f64> {
             }
         })
         .collect()
+}
+/// `Σ m_k Δu_k²` over the free dofs (`masses` in the order of `free`):
+/// the mass norm of an increment (`docs/solver.md`, "Stabilisation").
+fn mass_norm_squared(free: &[usize], masses: &[f64], delta: &[f64]) -> f64 {
+    free.iter()
+        .zip(masses)
+        .map(|(&d, m)| m * delta[d] * delta[d])
+        .sum()
 }
