@@ -52,6 +52,8 @@ struct FormingRaw {
     probe: Vec<ProbeRaw>,
     #[serde(default)]
     zone: Vec<ZoneRaw>,
+    #[serde(default)]
+    ply_contact: Vec<PlyContactRaw>,
     gravity: Option<GravityRaw>,
     contact: Option<ContactRaw>,
     output: Option<OutputRaw>,
@@ -161,6 +163,14 @@ struct ZoneRaw {
     ply: Option<String>,
     centre: Spanned<Vec<f64>>,
     size: Option<Spanned<Vec<f64>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlyContactRaw {
+    plies: Spanned<Vec<String>>,
+    friction: Spanned<f64>,
+    skin: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -404,6 +414,22 @@ pub struct ZoneSpec {
     pub zone: crate::post::forming::Zone,
 }
 
+/// Contact with friction between two plies (`[[ply_contact]]`, explicit
+/// path only).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlyContactSpec {
+    /// The two plies (indices into [`FormingCase::plies`]).
+    pub plies: [usize; 2],
+    /// Coulomb coefficient.
+    pub friction: f64,
+    /// Skin of the candidate lists \[mm\].
+    pub skin: f64,
+}
+
+/// The default skin of the ply–ply candidate lists \[mm\]: the lists are
+/// rebuilt after a node moves half of it (`docs/contact.md`).
+pub const DEFAULT_PLY_CONTACT_SKIN: f64 = 1.0;
+
 /// The default size of a zone: the paper's 20 × 20 mm windows \[mm\].
 pub const DEFAULT_ZONE_SIZE: [f64; 2] = [20.0, 20.0];
 
@@ -480,6 +506,8 @@ pub struct FormingCase {
     pub probes: Vec<ProbeSpec>,
     /// Evaluation zones.
     pub zones: Vec<ZoneSpec>,
+    /// Ply–ply contacts.
+    pub ply_contacts: Vec<PlyContactSpec>,
     /// How the PNG maps look at the plies (`output.camera`).
     pub camera: MapView,
     /// Gravity, if on.
@@ -697,6 +725,60 @@ impl FormingCase {
                 }),
             }
         };
+
+        let mut ply_contacts: Vec<PlyContactSpec> = Vec::new();
+        for (i, c) in raw.ply_contact.iter().enumerate() {
+            let key = |k: &str| format!("ply_contact[{i}].{k}");
+            let names = c.plies.get_ref();
+            let line = check.line_of(&c.plies);
+            let shown = format!(
+                "[{}]",
+                names
+                    .iter()
+                    .map(|n| format!("\"{n}\""))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            if names.len() != 2 || names[0] == names[1] {
+                return Err(check.invalid(
+                    line,
+                    &key("plies"),
+                    shown,
+                    "the names of two different plies",
+                ));
+            }
+            let a = ply_index(&Some(names[0].clone()), &key("plies"))?;
+            let b = ply_index(&Some(names[1].clone()), &key("plies"))?;
+            let pair = [a.min(b), a.max(b)];
+            if ply_contacts.iter().any(|p| p.plies == pair) {
+                return Err(check.invalid(
+                    line,
+                    &key("plies"),
+                    shown,
+                    "a pair of plies no other [[ply_contact]] names",
+                ));
+            }
+            let friction = check.range(
+                &c.friction,
+                &key("friction"),
+                |x| x >= 0.0,
+                "a Coulomb coefficient ≥ 0",
+            )?;
+            let skin = match &c.skin {
+                None => DEFAULT_PLY_CONTACT_SKIN,
+                Some(v) => check.range(
+                    v,
+                    &key("skin"),
+                    |x| x > 0.0 && x <= 1.0e3,
+                    "a distance in (0, 1000] mm",
+                )?,
+            };
+            ply_contacts.push(PlyContactSpec {
+                plies: [a, b],
+                friction,
+                skin,
+            });
+        }
 
         let gravity = match &raw.gravity {
             None => None,
@@ -949,6 +1031,16 @@ impl FormingCase {
         }
         let explicit =
             ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, stroke.unwrap_or(1.0))?;
+        if solver_kind == SolverKind::QuasiStatic
+            && let Some(c) = raw.ply_contact.first()
+        {
+            return Err(check.invalid(
+                check.line_of(&c.plies),
+                "ply_contact",
+                "[[ply_contact]]".to_string(),
+                "a case for the explicit solver: the quasi-static path does not take ply–ply contact (set solver = \"explicit\")",
+            ));
+        }
         if solver_kind == SolverKind::Explicit
             && let Some(p) = plies.iter().find(|p| p.density.is_none())
         {
@@ -987,6 +1079,7 @@ impl FormingCase {
             loads,
             probes,
             zones,
+            ply_contacts,
             camera,
             gravity,
             contact,

@@ -18,7 +18,7 @@ use crate::mesh::Mesh;
 use crate::mesh::generate::{OatSpecimen, oat_specimen};
 use crate::model::{
     BendingTerm, ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model,
-    RigidBodyMass, ToolContact,
+    PlyContact, PlyContactOptions, PlySurface, RigidBodyMass, ToolContact,
 };
 use crate::solver::{Dirichlet, DofMap};
 
@@ -611,6 +611,37 @@ impl FormingCase {
                 direction,
                 drawing,
             });
+        }
+        // Ply–ply contacts (explicit path only; the case refuses them on
+        // the quasi-static one).
+        for spec in &self.ply_contacts {
+            let surface = |k: usize| {
+                let ply = &plies[k];
+                PlySurface {
+                    name: ply.name.clone(),
+                    nodes: (0..ply.mesh.nodes.len())
+                        .map(|n| n + ply.node_offset)
+                        .collect(),
+                    reference: ply.mesh.nodes.clone(),
+                    triangles: ply.mesh.triangles.clone(),
+                    thickness: ply.thickness,
+                }
+            };
+            let [a, b] = spec.plies;
+            let name = format!("contact of {} with {}", plies[a].name, plies[b].name);
+            let term = PlyContact::new(
+                name,
+                surface(a),
+                surface(b),
+                PlyContactOptions {
+                    friction: spec.friction,
+                    explicit_stiffness: self.contact.explicit_stiffness,
+                    explicit_damping: self.contact.explicit_damping,
+                    skin: spec.skin,
+                },
+            )
+            .map_err(|e| format!("{}: {e}", self.source))?;
+            model.add(term);
         }
         Ok(FormingModel {
             model,

@@ -454,6 +454,12 @@ struct PlyContact {
     pressure: Vec<f64>,
     friction_force: Vec<f64>,
     slip: Vec<f64>,
+    /// Contact with other plies: status (0 open, 1 stick, 2 slip), the
+    /// node's own normal force [N] and the mid-surface gap [mm] (largest
+    /// status, summed forces, smallest gap over the ply contacts).
+    ply_status: Vec<i32>,
+    ply_normal_force: Vec<f64>,
+    ply_gap: Vec<f64>,
 }
 
 fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> PlyContact {
@@ -465,7 +471,29 @@ fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> P
         pressure: vec![0.0; count],
         friction_force: vec![0.0; count],
         slip: vec![0.0; count],
+        ply_status: vec![0; count],
+        ply_normal_force: vec![0.0; count],
+        ply_gap: vec![f64::INFINITY; count],
     };
+    for term in model.terms_of::<crate::model::PlyContact>() {
+        for k in 0..2 {
+            for (&node, contact) in term.ply_nodes(k).iter().zip(term.node_contacts(k)) {
+                let Some(n) = node.checked_sub(ply.node_offset).filter(|n| *n < count) else {
+                    continue;
+                };
+                c.ply_status[n] = c.ply_status[n].max(contact.status as i32);
+                c.ply_normal_force[n] += contact.normal_force;
+                c.ply_gap[n] = c.ply_gap[n].min(contact.gap);
+            }
+        }
+    }
+    // VTU readers take finite values: a node far from every other ply
+    // shows gap -1 (documented).
+    for g in &mut c.ply_gap {
+        if !g.is_finite() {
+            *g = -1.0;
+        }
+    }
     for term in model.terms_of::<crate::model::ToolContact>() {
         for ((&node, contact), area) in term
             .nodes()
@@ -574,7 +602,34 @@ fn write_ply_state(
                 name: "slip",
                 data: FieldData::Scalar(&contact.slip),
             },
-        ],
+        ]
+        .into_iter()
+        .chain(
+            (snapshot
+                .model
+                .terms_of::<crate::model::PlyContact>()
+                .next()
+                .is_some())
+            .then(|| {
+                [
+                    Field {
+                        name: "ply_contact_status",
+                        data: FieldData::Int(&contact.ply_status),
+                    },
+                    Field {
+                        name: "ply_contact_normal_force",
+                        data: FieldData::Scalar(&contact.ply_normal_force),
+                    },
+                    Field {
+                        name: "ply_contact_gap",
+                        data: FieldData::Scalar(&contact.ply_gap),
+                    },
+                ]
+            })
+            .into_iter()
+            .flatten(),
+        )
+        .collect(),
         cell_fields,
         comment: vec![
             format!(

@@ -7,6 +7,7 @@
 
 pub mod kernel;
 pub mod mesh_tool;
+pub mod ply_pair;
 pub mod surface;
 pub mod tessellate;
 

@@ -121,6 +121,10 @@ impl DeadLoad {
 }
 
 impl Term for DeadLoad {
+    fn has_stiffness(&self) -> bool {
+        false
+    }
+
     fn name(&self) -> &str {
         &self.name
     }
@@ -215,6 +219,10 @@ impl RigidBodyMass {
 }
 
 impl Term for RigidBodyMass {
+    fn has_stiffness(&self) -> bool {
+        false
+    }
+
     fn name(&self) -> &str {
         &self.name
     }

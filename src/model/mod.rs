@@ -10,12 +10,14 @@ pub mod bending;
 pub mod contact;
 pub mod loads;
 pub mod membrane;
+pub mod ply_contact;
 pub mod term;
 
 pub use bending::{BendingSetupError, BendingTerm};
 pub use contact::{ContactOptions, NodeContact, ToolContact};
 pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
+pub use ply_contact::{PlyContact, PlyContactOptions, PlyNodeContact, PlySurface};
 pub use term::{
     Augmentation, MassScaling, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure,
 };

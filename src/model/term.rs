@@ -291,6 +291,14 @@ pub trait Term: Send + Sync + std::any::Any {
         self.evaluate(state, out, None).map(|_| ())
     }
 
+    /// `false` when the term has no stiffness, so that its
+    /// [`Term::frequency_bound`] is always zero (loads, masses): the
+    /// explicit step estimate then does not treat the nodes it touches as
+    /// coupled.
+    fn has_stiffness(&self) -> bool {
+        true
+    }
+
     /// An upper bound of `λmax(M⁻¹ K_term)` [1/s²] at `state` with the
     /// lumped masses `masses`: the bounds of all terms add up to a bound of
     /// the model's `ω²_max` (Weyl). Zero for a term without stiffness.

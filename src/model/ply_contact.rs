@@ -1,0 +1,668 @@
+//! Contact with Coulomb friction between two deforming plies, for the
+//! explicit path (`docs/contact.md`, "Ply–ply contact").
+//!
+//! Symmetric node-to-surface penalty: every node of each ply is checked
+//! against the triangles of the other (two passes, so neither ply is a
+//! master the other can pass through). The gap is measured between
+//! mid-surfaces: `g = d − (t_A + t_B)/2`, with `d` the node's signed
+//! distance from the other ply on the side it started from
+//! ([`crate::contact::ply_pair::signed_distance`]). Per node the force is
+//! that of the tool-contact penalty kernel
+//! ([`crate::contact::kernel::PenaltyContact`]: normal spring, elastic–
+//! plastic friction spring at `μ` times the normal force), in the node's
+//! position relative to the material point of the other ply under it
+//! (barycentric weights of the closest point); the reaction goes to the
+//! three nodes of that triangle with the same weights, so momentum is
+//! conserved. Candidate triangles come from Verlet lists rebuilt with a
+//! refitted bounding-volume tree whenever a node has moved half the skin.
+//!
+//! The quasi-static path does not take this term: the case layer refuses
+//! it there.
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use super::term::{Masses, State, Stencils, Term, TermEnergy, TermFailure};
+use crate::contact::SurfaceNormal;
+use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState};
+use crate::contact::ply_pair::{
+    CandidateLists, closest_candidate, signed_distance, triangle_boxes,
+};
+
+/// Nodes per task of the parallel node loops.
+const NODE_CHUNK: usize = 256;
+
+/// Distance beyond the contact offset within which a node is evaluated
+/// \[mm\]; farther nodes are open (the penalty is open beyond the offset
+/// anyway, so this only bounds the candidate search). Large against any
+/// motion within one time increment (below 1e-3 mm in the benches).
+const CULL_MARGIN: f64 = 0.25;
+
+/// One ply's side of a ply–ply contact: its nodes (model numbering), their
+/// reference positions, its triangles (local node numbering) and its
+/// thickness.
+#[derive(Debug, Clone)]
+pub struct PlySurface {
+    /// Name of the ply, for messages.
+    pub name: String,
+    /// Model node of each local node.
+    pub nodes: Vec<usize>,
+    /// Reference position of each local node \[mm\].
+    pub reference: Vec<Vector3<f64>>,
+    /// Triangles, by local node.
+    pub triangles: Vec<[usize; 3]>,
+    /// Thickness \[mm\].
+    pub thickness: f64,
+}
+
+/// Settings of one ply–ply contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlyContactOptions {
+    /// Coulomb coefficient `μ ≥ 0`.
+    pub friction: f64,
+    /// Penalty as a fraction of the central-difference limit of each
+    /// node–surface spring (shared by the two passes, so each takes half).
+    pub explicit_stiffness: f64,
+    /// Normal damping as a fraction of each spring's critical damping.
+    pub explicit_damping: f64,
+    /// Skin of the Verlet candidate lists \[mm\].
+    pub skin: f64,
+}
+
+/// The per-node figures a user sees (VTU fields) of a ply–ply contact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PlyNodeContact {
+    /// 0 open, 1 stick, 2 slip.
+    pub status: u8,
+    /// Normal force \[N\] of the node's own spring.
+    pub normal_force: f64,
+    /// Gap of the mid-surfaces at the node \[mm\] (∞ when far).
+    pub gap: f64,
+}
+
+/// What one node found at the last increment.
+#[derive(Debug, Clone, Copy)]
+struct Hit {
+    /// Triangle of the other ply (`u32::MAX`: none).
+    triangle: u32,
+    weights: [f64; 3],
+    /// The residual `r = −f_c` on the node \[N\].
+    residual: Vector3<f64>,
+    /// `max(k_N, k_T)` of the node's spring while it acts \[N/mm\].
+    stiffness: f64,
+}
+
+const NO_HIT: Hit = Hit {
+    triangle: u32::MAX,
+    weights: [0.0; 3],
+    residual: Vector3::new(0.0, 0.0, 0.0),
+    stiffness: 0.0,
+};
+
+/// The nodes of one ply against the triangles of the other.
+struct Pass {
+    lists: CandidateLists,
+    states: Vec<PenaltyState>,
+    /// Per node: the side (±1) of the other ply it started on; 0 until
+    /// first seen.
+    sides: Vec<f64>,
+    springs: Vec<PenaltyContact>,
+    dashpots: Vec<f64>,
+    /// Per node: dashpot energy and its last force.
+    damped: Vec<(f64, Vector3<f64>)>,
+    hits: Vec<Hit>,
+    outputs: Vec<PlyNodeContact>,
+    /// Bounding boxes of the other ply's triangles at the current
+    /// positions.
+    boxes: Vec<[f64; 6]>,
+}
+
+/// Contact with friction between two plies (explicit path).
+pub struct PlyContact {
+    name: String,
+    plies: [PlySurface; 2],
+    options: PlyContactOptions,
+    /// `(t_A + t_B)/2` \[mm\].
+    offset: f64,
+    passes: Vec<Pass>,
+    /// Current, previous-increment and list-build positions per ply.
+    positions: [Vec<Vector3<f64>>; 2],
+    previous: [Vec<Vector3<f64>>; 2],
+    anchors: [Vec<Vector3<f64>>; 2],
+    /// Scatter buffer: ply 0's nodes, then ply 1's.
+    node_forces: Vec<Vector3<f64>>,
+}
+
+impl PlyContact {
+    /// Contact between the plies `lower` and `upper` (any order; the names
+    /// only label messages).
+    ///
+    /// # Errors
+    /// A ply without nodes or triangles, a triangle with a node out of
+    /// range, or a setting out of range.
+    pub fn new(
+        name: impl Into<String>,
+        first: PlySurface,
+        second: PlySurface,
+        options: PlyContactOptions,
+    ) -> Result<Self, String> {
+        let name = name.into();
+        for ply in [&first, &second] {
+            if ply.nodes.is_empty() || ply.triangles.is_empty() {
+                return Err(format!("{name}: ply \"{}\" has no triangles", ply.name));
+            }
+            if ply.reference.len() != ply.nodes.len() {
+                return Err(format!(
+                    "{name}: ply \"{}\": {} reference positions for {} nodes",
+                    ply.name,
+                    ply.reference.len(),
+                    ply.nodes.len()
+                ));
+            }
+            if let Some(t) = ply
+                .triangles
+                .iter()
+                .find(|t| t.iter().any(|&n| n >= ply.nodes.len()))
+            {
+                return Err(format!(
+                    "{name}: ply \"{}\": triangle {t:?} names a node beyond its {} nodes",
+                    ply.name,
+                    ply.nodes.len()
+                ));
+            }
+            if !(ply.thickness.is_finite() && ply.thickness > 0.0) {
+                return Err(format!(
+                    "{name}: ply \"{}\": thickness {} mm: expected a positive value",
+                    ply.name, ply.thickness
+                ));
+            }
+        }
+        let checks = [
+            ("friction", options.friction, options.friction >= 0.0),
+            (
+                "explicit_stiffness",
+                options.explicit_stiffness,
+                options.explicit_stiffness > 0.0 && options.explicit_stiffness <= 1.0,
+            ),
+            (
+                "explicit_damping",
+                options.explicit_damping,
+                options.explicit_damping >= 0.0,
+            ),
+            ("skin", options.skin, options.skin > 0.0),
+        ];
+        for (key, value, ok) in checks {
+            if !(ok && value.is_finite()) {
+                return Err(format!("{name}: {key} = {value}: out of range"));
+            }
+        }
+        let offset = 0.5 * (first.thickness + second.thickness);
+        let positions = [first.reference.clone(), second.reference.clone()];
+        let total = first.nodes.len() + second.nodes.len();
+        Ok(Self {
+            name,
+            offset,
+            passes: Vec::new(),
+            previous: positions.clone(),
+            anchors: positions.clone(),
+            positions,
+            node_forces: vec![Vector3::zeros(); total],
+            plies: [first, second],
+            options,
+        })
+    }
+
+    /// The contact offset `(t_A + t_B)/2` \[mm\]: the distance of the
+    /// mid-surfaces at which the plies touch.
+    pub fn offset(&self) -> f64 {
+        self.offset
+    }
+
+    /// The per-node figures of ply `k` (0 or 1, in the order given to
+    /// [`PlyContact::new`]) at the last increment; empty before the
+    /// explicit set-up.
+    pub fn node_contacts(&self, k: usize) -> &[PlyNodeContact] {
+        self.passes.get(k).map_or(&[], |p| &p.outputs)
+    }
+
+    /// The model nodes of ply `k`.
+    pub fn ply_nodes(&self, k: usize) -> &[usize] {
+        &self.plies[k].nodes
+    }
+
+    /// How many times the candidate lists were built (both passes).
+    pub fn list_builds(&self) -> usize {
+        self.passes.iter().map(|p| p.lists.builds()).sum()
+    }
+
+    /// The sum of the normal forces of ply `k`'s nodes on the other ply at
+    /// the last increment \[N\].
+    pub fn normal_force(&self, k: usize) -> f64 {
+        self.node_contacts(k).iter().map(|c| c.normal_force).sum()
+    }
+
+    fn failure(&self, node: usize, reason: String) -> TermFailure {
+        TermFailure {
+            term: self.name.clone(),
+            what: "node",
+            index: node,
+            reason,
+        }
+    }
+
+    /// Current positions of both plies from `u`.
+    fn update_positions(&mut self, u: &[f64]) {
+        for (ply, positions) in self.plies.iter().zip(self.positions.iter_mut()) {
+            for ((x, x0), &n) in positions.iter_mut().zip(&ply.reference).zip(&ply.nodes) {
+                *x = x0 + Vector3::new(u[3 * n], u[3 * n + 1], u[3 * n + 2]);
+            }
+        }
+    }
+
+    /// Rebuilds both passes' candidate lists when a node has moved half
+    /// the skin since the last build (or when `force`).
+    fn refresh_lists(&mut self, force: bool) {
+        let half = 0.5 * self.options.skin;
+        let moved = force
+            || self.positions.iter().zip(&self.anchors).any(|(x, a)| {
+                x.iter()
+                    .zip(a)
+                    .any(|(x, a)| (x - a).norm_squared() > half * half)
+            });
+        if !moved {
+            return;
+        }
+        for (k, pass) in self.passes.iter_mut().enumerate() {
+            let other = 1 - k;
+            pass.lists.rebuild(
+                &self.positions[k],
+                &self.positions[other],
+                &self.plies[other].triangles,
+            );
+        }
+        self.anchors = self.positions.clone();
+    }
+}
+
+impl Term for PlyContact {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// No quasi-static stencils: the term is explicit only.
+    fn stencils(&self) -> Stencils {
+        Stencils {
+            count: 0,
+            nodes: 1,
+            extras: 0,
+        }
+    }
+
+    fn stencil(&self, _s: usize, _nodes: &mut [usize], _extras: &mut [usize]) {}
+
+    fn evaluate(
+        &mut self,
+        _state: &State,
+        _force: &mut [f64],
+        _tangent: Option<&mut [f64]>,
+    ) -> Result<f64, TermFailure> {
+        Err(TermFailure {
+            term: self.name.clone(),
+            what: "term",
+            index: 0,
+            reason: "ply–ply contact is on the explicit path only (solver = \"explicit\")".into(),
+        })
+    }
+
+    /// One stencil per node: ply 0's nodes, then ply 1's.
+    fn explicit_stencils(&self) -> Stencils {
+        Stencils {
+            count: self.plies[0].nodes.len() + self.plies[1].nodes.len(),
+            nodes: 1,
+            extras: 0,
+        }
+    }
+
+    fn explicit_stencil(&self, s: usize, nodes: &mut [usize], _extras: &mut [usize]) {
+        let n0 = self.plies[0].nodes.len();
+        nodes[0] = if s < n0 {
+            self.plies[0].nodes[s]
+        } else {
+            self.plies[1].nodes[s - n0]
+        };
+    }
+
+    fn stiffness_from_time_step(&self) -> bool {
+        true
+    }
+
+    /// Per node: `k_N = k_T = (c/2) · 4 / (Δt² (1/m + 1/m_other))` with `m`
+    /// the node's mass and `m_other` the smallest nodal mass of the other
+    /// ply (the two passes share the fraction `c`); the side each node
+    /// starts on; the candidate lists.
+    ///
+    /// # Errors
+    /// A node without mass, or a node closer to the other ply's
+    /// mid-surface than half the contact offset (the plies overlap).
+    fn explicit_setup(
+        &mut self,
+        state: &State,
+        masses: &Masses,
+        time_step: f64,
+    ) -> Result<(), TermFailure> {
+        self.update_positions(state.u);
+        self.previous = self.positions.clone();
+        let reach = self.offset + CULL_MARGIN;
+        let mut passes = Vec::with_capacity(2);
+        for k in 0..2 {
+            let other = 1 - k;
+            let lightest = self.plies[other]
+                .nodes
+                .iter()
+                .map(|&n| masses.node[n])
+                .filter(|m| *m > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            let mut springs = Vec::with_capacity(self.plies[k].nodes.len());
+            let mut dashpots = Vec::with_capacity(self.plies[k].nodes.len());
+            for &n in &self.plies[k].nodes {
+                let m = masses.node[n];
+                if !(m > 0.0 && m.is_finite() && lightest.is_finite()) {
+                    return Err(self.failure(
+                        n,
+                        format!("nodal mass {m} t: expected a positive mass (areal_mass)"),
+                    ));
+                }
+                let effective = 1.0 / (1.0 / m + 1.0 / lightest);
+                let k_n = 0.5 * self.options.explicit_stiffness * 4.0 * effective
+                    / (time_step * time_step);
+                let spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
+                    .map_err(|e| self.failure(n, e.to_string()))?;
+                dashpots.push(self.options.explicit_damping * 2.0 * (k_n * effective).sqrt());
+                springs.push(spring);
+            }
+            let count = self.plies[k].nodes.len();
+            passes.push(Pass {
+                lists: CandidateLists::new(reach, self.options.skin),
+                states: vec![PenaltyState::new(&Vector3::zeros()); count],
+                sides: vec![0.0; count],
+                springs,
+                dashpots,
+                damped: vec![(0.0, Vector3::zeros()); count],
+                hits: vec![NO_HIT; count],
+                boxes: vec![[0.0; 6]; self.plies[other].triangles.len()],
+                outputs: vec![
+                    PlyNodeContact {
+                        gap: f64::INFINITY,
+                        ..Default::default()
+                    };
+                    count
+                ],
+            });
+        }
+        self.passes = passes;
+        self.refresh_lists(true);
+        // The side every node starts on; overlapping plies are an error.
+        for k in 0..2 {
+            let other = 1 - k;
+            let (surface, triangles) = (&self.positions[other], &self.plies[other].triangles);
+            let mut boxes = std::mem::take(&mut self.passes[k].boxes);
+            triangle_boxes(surface, triangles, &mut boxes);
+            self.passes[k].boxes = boxes;
+            for i in 0..self.plies[k].nodes.len() {
+                let x = &self.positions[k][i];
+                let pass = &self.passes[k];
+                let Some((_, point, normal)) =
+                    closest_candidate(x, pass.lists.of(i), surface, triangles, &pass.boxes, None)
+                else {
+                    continue;
+                };
+                let along = normal.dot(&(x - point.point));
+                if (x - point.point).norm() < 0.5 * self.offset {
+                    return Err(self.failure(
+                        self.plies[k].nodes[i],
+                        format!(
+                            "ply \"{}\" starts {:.4} mm from the mid-surface of ply \"{}\", less than half the contact offset {} mm (the sum of the half thicknesses): the plies overlap; stack them {} mm apart",
+                            self.plies[k].name,
+                            (x - point.point).norm(),
+                            self.plies[other].name,
+                            self.offset,
+                            self.offset
+                        ),
+                    ));
+                }
+                if along.abs() >= crate::contact::ply_pair::MIN_FACING * (x - point.point).norm() {
+                    self.passes[k].sides[i] = along.signum();
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Per node of each ply: its closest point on the other ply, the
+    /// penalty kernel in the position relative to that material point, the
+    /// normal dashpot; then the reactions scattered to the other ply's
+    /// triangle nodes (in a fixed order: the results do not depend on the
+    /// thread count).
+    fn explicit_forces(&mut self, state: &State, out: &mut [f64]) -> Result<(), TermFailure> {
+        if self.passes.is_empty() {
+            out.fill(0.0);
+            return Ok(());
+        }
+        self.update_positions(state.u);
+        self.refresh_lists(false);
+        let dt = state.time_step;
+        let cull = self.offset + CULL_MARGIN;
+        for k in 0..2 {
+            let other = 1 - k;
+            let (slaves, slaves_prev) = (&self.positions[k], &self.previous[k]);
+            let (surface, surface_prev) = (&self.positions[other], &self.previous[other]);
+            let triangles = &self.plies[other].triangles;
+            let pass = &mut self.passes[k];
+            pass.boxes
+                .par_chunks_mut(NODE_CHUNK)
+                .zip(triangles.par_chunks(NODE_CHUNK))
+                .for_each(|(b, t)| triangle_boxes(surface, t, b));
+            let lists = &pass.lists;
+            let boxes = &pass.boxes;
+            let (springs, dashpots) = (&pass.springs, &pass.dashpots);
+            let failed = pass
+                .hits
+                .par_chunks_mut(NODE_CHUNK)
+                .zip(pass.states.par_chunks_mut(NODE_CHUNK))
+                .zip(pass.sides.par_chunks_mut(NODE_CHUNK))
+                .zip(pass.damped.par_chunks_mut(NODE_CHUNK))
+                .zip(pass.outputs.par_chunks_mut(NODE_CHUNK))
+                .enumerate()
+                .map(|(chunk, ((((hits, states), sides), damped), outputs))| {
+                    for (j, ((((hit, s), side), damped), o)) in hits
+                        .iter_mut()
+                        .zip(states.iter_mut())
+                        .zip(sides.iter_mut())
+                        .zip(damped.iter_mut())
+                        .zip(outputs.iter_mut())
+                        .enumerate()
+                    {
+                        let i = chunk * NODE_CHUNK + j;
+                        let x = &slaves[i];
+                        let hint = (hit.triangle != u32::MAX).then_some(hit.triangle);
+                        let found =
+                            closest_candidate(x, lists.of(i), surface, triangles, boxes, hint);
+                        let mut contact: Option<(usize, [f64; 3], SurfaceNormal)> = None;
+                        if let Some((t, point, normal)) = found {
+                            if *side == 0.0 {
+                                let along = normal.dot(&(x - point.point));
+                                let facing =
+                                    crate::contact::ply_pair::MIN_FACING * (x - point.point).norm();
+                                if along.abs() >= facing && along != 0.0 {
+                                    *side = along.signum();
+                                }
+                            }
+                            if *side != 0.0
+                                && let Some(p) = signed_distance(x, &point, &normal, *side)
+                                && p.distance <= cull
+                            {
+                                contact = Some((t, point.weights, p));
+                            }
+                        }
+                        if contact.is_none()
+                            && s.status == ContactStatus::Open
+                            && s.spring == Vector3::zeros()
+                        {
+                            *hit = NO_HIT;
+                            o.status = 0;
+                            o.normal_force = 0.0;
+                            o.gap = f64::INFINITY;
+                            continue;
+                        }
+                        // Position relative to the material point under the
+                        // node, now and at the last increment (same weights).
+                        let (weights, point) = match &contact {
+                            Some((t, w, p)) => (Some((*t, *w)), Some(*p)),
+                            None => (hit_weights(hit), None),
+                        };
+                        let (relative, relative_prev) = match weights {
+                            Some((t, w)) => {
+                                let tri = &triangles[t];
+                                let under = |xs: &[Vector3<f64>]| {
+                                    w[0] * xs[tri[0]] + w[1] * xs[tri[1]] + w[2] * xs[tri[2]]
+                                };
+                                (x - under(surface), slaves_prev[i] - under(surface_prev))
+                            }
+                            None => (*x, slaves_prev[i]),
+                        };
+                        s.previous_position = relative_prev;
+                        let motion = relative - relative_prev;
+                        let r = match springs[i].update_trusted(s, &relative, point.as_ref()) {
+                            Ok(r) => r,
+                            Err(_) => return Some(i),
+                        };
+                        let mut residual = r.residual;
+                        let mut dashpot = Vector3::zeros();
+                        if r.gap < 0.0 && dt > 0.0 && dashpots[i] > 0.0 {
+                            let approach = -r.normal.dot(&motion);
+                            let force = (dashpots[i] * approach / dt).max(-r.normal_force);
+                            dashpot = force * r.normal;
+                            residual -= dashpot;
+                        }
+                        let (energy, previous) = damped;
+                        *energy -= 0.5 * (*previous + dashpot).dot(&motion);
+                        *previous = dashpot;
+                        *hit = match weights {
+                            Some((t, w)) if r.status != ContactStatus::Open => Hit {
+                                triangle: t as u32,
+                                weights: w,
+                                residual,
+                                stiffness: springs[i]
+                                    .normal_stiffness()
+                                    .max(springs[i].tangential_stiffness()),
+                            },
+                            Some((t, w)) => Hit {
+                                triangle: t as u32,
+                                weights: w,
+                                ..NO_HIT
+                            },
+                            None => NO_HIT,
+                        };
+                        o.status = match r.status {
+                            ContactStatus::Open => 0,
+                            ContactStatus::Stick => 1,
+                            ContactStatus::Slip => 2,
+                        };
+                        o.normal_force = r.normal_force;
+                        o.gap = r.gap;
+                    }
+                    None
+                })
+                .reduce(
+                    || None,
+                    |a, b| match (a, b) {
+                        (Some(x), Some(y)) => Some(x.min(y)),
+                        (x, None) => x,
+                        (None, y) => y,
+                    },
+                );
+            if let Some(i) = failed {
+                let node = self.plies[k].nodes[i];
+                return Err(self.failure(node, "the contact kernel rejected the state".into()));
+            }
+        }
+        // Scatter in node order: each node's own residual, the reactions on
+        // the triangle under it.
+        let n0 = self.plies[0].nodes.len();
+        self.node_forces.fill(Vector3::zeros());
+        for k in 0..2 {
+            let other = 1 - k;
+            let (own, theirs) = if k == 0 { (0, n0) } else { (n0, 0) };
+            for (i, hit) in self.passes[k].hits.iter().enumerate() {
+                if hit.stiffness == 0.0 && hit.residual == Vector3::zeros() {
+                    continue;
+                }
+                self.node_forces[own + i] += hit.residual;
+                let tri = &self.plies[other].triangles[hit.triangle as usize];
+                for (&n, w) in tri.iter().zip(hit.weights) {
+                    self.node_forces[theirs + n] -= w * hit.residual;
+                }
+            }
+        }
+        for (f, o) in self.node_forces.iter().zip(out.chunks_exact_mut(3)) {
+            o.copy_from_slice(f.as_slice());
+        }
+        self.previous[0].copy_from_slice(&self.positions[0]);
+        self.previous[1].copy_from_slice(&self.positions[1]);
+        Ok(())
+    }
+
+    /// A Gershgorin bound of `λmax(M⁻¹ K)` over the acting springs: a
+    /// spring of stiffness `k` between a node (mass `m_s`) and the point
+    /// under it (weights `w`, masses `m_j`) is `k b bᵀ` with
+    /// `b = (1, −w_1, −w_2, −w_3)`; with `ĉ = (1/√m_s, w_j/√m_j)` each
+    /// node's row of `M^{-1/2} K M^{-1/2}` sums to at most
+    /// `Σ_springs k ĉ_node Σ ĉ`.
+    fn frequency_bound(&self, _state: &State, masses: &Masses) -> Result<f64, TermFailure> {
+        if self.passes.is_empty() {
+            return Ok(0.0);
+        }
+        let n0 = self.plies[0].nodes.len();
+        let mut rows = vec![0.0; self.node_forces.len()];
+        for k in 0..2 {
+            let other = 1 - k;
+            let (own, theirs) = if k == 0 { (0, n0) } else { (n0, 0) };
+            for (i, hit) in self.passes[k].hits.iter().enumerate() {
+                if hit.stiffness == 0.0 {
+                    continue;
+                }
+                let tri = &self.plies[other].triangles[hit.triangle as usize];
+                let own_c = 1.0 / masses.node[self.plies[k].nodes[i]].sqrt();
+                let c: [f64; 3] = std::array::from_fn(|j| {
+                    hit.weights[j] / masses.node[self.plies[other].nodes[tri[j]]].sqrt()
+                });
+                let sum = own_c + c.iter().sum::<f64>();
+                rows[own + i] += hit.stiffness * own_c * sum;
+                for (&n, cj) in tri.iter().zip(c) {
+                    rows[theirs + n] += hit.stiffness * cj * sum;
+                }
+            }
+        }
+        let max = rows.iter().fold(0.0_f64, |m, r| m.max(*r));
+        if !max.is_finite() {
+            return Err(self.failure(0, format!("frequency bound {max}")));
+        }
+        Ok(max)
+    }
+
+    fn energy(&mut self, _state: &State) -> Result<TermEnergy, TermFailure> {
+        let mut energy = TermEnergy::default();
+        for pass in &self.passes {
+            for (s, (damped, _)) in pass.states.iter().zip(&pass.damped) {
+                energy.contact += s.stored_energy();
+                energy.dissipated += s.dissipated + damped;
+            }
+        }
+        Ok(energy)
+    }
+}
+
+/// The triangle and weights of a node's last hit, if any.
+fn hit_weights(hit: &Hit) -> Option<(usize, [f64; 3])> {
+    (hit.triangle != u32::MAX).then_some((hit.triangle as usize, hit.weights))
+}
