@@ -222,7 +222,10 @@ fn mirror_deviation_about_x0(contour: &[([f64; 2], [f64; 2])]) -> f64 {
 /// mirror-symmetric about x = 0 within 1 mm (the limit: the punch,
 /// the openings, the [0°] rovings and the mirrored mesh all have that
 /// symmetry, so only round-off grown by the explicit dynamics remains);
-/// the punch pulls the blank in at every edge midpoint.
+/// the punch pulls the blank in at every edge midpoint. Measured on this
+/// 24 × 24 blank: KE/IE at most 4.84 % (a burst at 93 % of the stroke,
+/// `docs/forming.md`, "Loading speed" of the tetrahedron bench), balance
+/// 5.1e-4, contour deviation 0.003 mm, 25 s.
 #[test]
 fn tetrahedron_0_explicit_reaches_full_depth_quasi_static_and_symmetric() {
     let case = coarse("tetrahedron-0.toml", COARSE_CELLS);
