@@ -117,6 +117,14 @@ struct ToolRaw {
     minor_radius: Option<Spanned<f64>>,
     opening_radius: Option<Spanned<f64>>,
     fillet_radius: Option<Spanned<f64>>,
+    sides: Option<Spanned<i64>>,
+    face_angle_deg: Option<Spanned<f64>>,
+    rounding_radius: Option<Spanned<f64>>,
+    height: Option<Spanned<f64>>,
+    edge_direction: Option<Spanned<Vec<f64>>>,
+    punch: Option<Spanned<String>>,
+    clearance: Option<Spanned<f64>>,
+    section_at: Option<Spanned<Vec<f64>>>,
     side: Option<Spanned<String>>,
     file: Option<Spanned<String>>,
     scale: Option<Spanned<f64>>,
@@ -302,6 +310,43 @@ pub enum ToolShape {
         opening_radius: f64,
         /// Fillet radius \[mm\].
         fillet_radius: f64,
+    },
+    /// A rounded regular pyramid, apex first along the axis reversed (the
+    /// axis points from the apex to the base; the origin is the solid's
+    /// lowest point), [`crate::contact::Pyramid`].
+    Pyramid {
+        /// Number of lateral faces.
+        sides: usize,
+        /// Angle of the lateral faces to the base plane \[rad\].
+        face_angle: f64,
+        /// Rounding radius of the apex and every edge \[mm\].
+        rounding_radius: f64,
+        /// Height of the sharp core from its apex to its base \[mm\].
+        height: f64,
+        /// Direction of one base edge (unit, normal to the axis).
+        edge_direction: Vector3<f64>,
+    },
+    /// A plate whose face (normal = axis, towards the ply) has a rounded
+    /// polygonal opening with a fillet, following a pyramid punch's section
+    /// at the punch's full stroke grown by a clearance
+    /// ([`crate::contact::PlateWithPolygonHole`],
+    /// [`crate::contact::punch_opening`]).
+    PlateWithPolygonHole {
+        /// The name of the pyramid tool the opening follows.
+        punch: String,
+        /// Clearance between the punch's section and the opening \[mm\].
+        clearance: f64,
+        /// Fillet radius \[mm\].
+        fillet_radius: f64,
+        /// A point of the plane where the section is taken \[mm\] (`None`:
+        /// the plate's origin).
+        section_at: Option<Vector3<f64>>,
+        /// The opening's polygon in the plate's local `(x, y)` \[mm\]
+        /// (counter-clockwise), computed from the punch when the case is
+        /// read.
+        polygon: Vec<[f64; 2]>,
+        /// The opening's corner radius \[mm\], computed likewise.
+        corner_radius: f64,
     },
     /// A triangle mesh from an STL or OBJ file.
     Mesh {
@@ -829,6 +874,7 @@ impl FormingCase {
             }
             tools.push(tool);
         }
+        resolve_openings(&check, &raw.tool, &mut tools)?;
 
         let mut boundaries = Vec::new();
         for (i, b) in raw.boundary.iter().enumerate() {
@@ -1258,6 +1304,121 @@ fn ply_mesh(
     })
 }
 
+/// A pyramid tool's shape and its placement (the local frame of
+/// `Placement::new(origin, axis, None)`, in which the base edge's azimuth
+/// is measured), as the model builds it.
+///
+/// # Errors
+/// The shape's or the placement's [`ShapeError`](crate::contact::ShapeError).
+pub(crate) fn pyramid_of(
+    spec: &ToolSpec,
+) -> Result<Option<(crate::contact::Pyramid, crate::contact::Placement)>, crate::contact::ShapeError>
+{
+    let ToolShape::Pyramid {
+        sides,
+        face_angle,
+        rounding_radius,
+        height,
+        edge_direction,
+    } = &spec.shape
+    else {
+        return Ok(None);
+    };
+    let placement = crate::contact::Placement::new(spec.origin, spec.axis, None)?;
+    let local = placement.vector_to_local(edge_direction);
+    let pyramid = crate::contact::Pyramid::new(
+        *sides,
+        *face_angle,
+        *rounding_radius,
+        *height,
+        local.y.atan2(local.x),
+    )?;
+    Ok(Some((pyramid, placement)))
+}
+
+/// Computes the opening of every `plate-with-polygon-hole` from its punch
+/// (the named pyramid tool at its full stroke, `docs/cases.md`).
+fn resolve_openings(
+    check: &TomlChecker,
+    raw: &[ToolRaw],
+    tools: &mut [ToolSpec],
+) -> Result<(), ConfigError> {
+    for i in 0..tools.len() {
+        let ToolShape::PlateWithPolygonHole {
+            punch,
+            clearance,
+            section_at,
+            ..
+        } = &tools[i].shape
+        else {
+            continue;
+        };
+        let line = raw[i].punch.as_ref().map_or(0, |p| check.line_of(p));
+        let key = format!("tool[{i}].punch");
+        let shown = format!("\"{punch}\"");
+        let Some(punch_spec) = tools.iter().find(|t| &t.name == punch) else {
+            let names: Vec<String> = tools
+                .iter()
+                .filter(|t| matches!(t.shape, ToolShape::Pyramid { .. }))
+                .map(|t| format!("\"{}\"", t.name))
+                .collect();
+            return Err(check.invalid(
+                line,
+                &key,
+                shown,
+                &format!(
+                    "the name of a pyramid tool (here: {})",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        };
+        let invalid = |why: String| check.invalid(line, &key, shown.clone(), &why);
+        let (pyramid, placement) = match pyramid_of(punch_spec) {
+            Ok(Some(p)) => p,
+            Ok(None) => {
+                return Err(invalid(format!(
+                    "the name of a pyramid tool (\"{punch}\" is not a pyramid)"
+                )));
+            }
+            Err(e) => return Err(invalid(format!("a valid pyramid ({e})"))),
+        };
+        let stroke = match punch_spec.motion {
+            ToolMotion::Prescribed {
+                direction,
+                displacement,
+            } => direction * displacement,
+            _ => Vector3::zeros(),
+        };
+        let plate = &tools[i];
+        let frame = crate::contact::Placement::new(plate.origin, plate.axis, None)
+            .map_err(|e| invalid(format!("a valid plate placement ({e})")))?;
+        let at = section_at.unwrap_or(plate.origin);
+        let (polygon, corner) =
+            crate::contact::punch_opening(&pyramid, &placement, &stroke, &frame, &at, *clearance)
+                .map_err(|e| {
+                invalid(format!(
+                    "a pyramid whose section by the plate's plane at full stroke \
+                         gives the opening ({e})"
+                ))
+            })?;
+        let polygon: Vec<[f64; 2]> = polygon.iter().map(|p| [p.x, p.y]).collect();
+        if let ToolShape::PlateWithPolygonHole {
+            polygon: p,
+            corner_radius,
+            ..
+        } = &mut tools[i].shape
+        {
+            *p = polygon;
+            *corner_radius = corner;
+        }
+    }
+    Ok(())
+}
+
 fn tool_spec(
     check: &TomlChecker,
     t: &ToolRaw,
@@ -1278,6 +1439,8 @@ fn tool_spec(
         Cylinder,
         Torus,
         Plate,
+        Pyramid,
+        PolygonPlate,
         Mesh,
     }
     let kind = check.choice(
@@ -1289,6 +1452,8 @@ fn tool_spec(
             ("cylinder", Kind::Cylinder),
             ("torus", Kind::Torus),
             ("plate-with-hole", Kind::Plate),
+            ("pyramid", Kind::Pyramid),
+            ("plate-with-polygon-hole", Kind::PolygonPlate),
             ("mesh", Kind::Mesh),
         ],
     )?;
@@ -1308,6 +1473,93 @@ fn tool_spec(
             opening_radius: positive(&t.opening_radius, "opening_radius", "a radius > 0 mm")?,
             fillet_radius: positive(&t.fillet_radius, "fillet_radius", "a radius > 0 mm")?,
         },
+        Kind::Pyramid => {
+            let sides = match &t.sides {
+                None => 3,
+                Some(n) => check.count(n, &key("sides"), 3..=64)?,
+            };
+            let face_angle = match &t.face_angle_deg {
+                // The regular tetrahedron: cos α = 1/3 (α ≈ 70.53°).
+                None => (1.0_f64 / 3.0).acos(),
+                Some(a) => check
+                    .range(
+                        a,
+                        &key("face_angle_deg"),
+                        |x| x > 0.0 && x < 90.0,
+                        "an angle in (0, 90) degrees between the faces and the base plane",
+                    )?
+                    .to_radians(),
+            };
+            let axis = match &t.axis {
+                None => Vector3::z(),
+                Some(a) => vector3(check, a, &key("axis"), true)?,
+            };
+            let edge_direction = match &t.edge_direction {
+                None => Vector3::x(),
+                Some(e) => vector3(check, e, &key("edge_direction"), true)?,
+            };
+            let projected = edge_direction - axis * edge_direction.dot(&axis);
+            if projected.norm() <= 1e-6 {
+                let line = t.edge_direction.as_ref().map_or(0, |e| check.line_of(e));
+                return Err(check.invalid(
+                    line,
+                    &key("edge_direction"),
+                    shown_list(edge_direction.as_slice()),
+                    &format!(
+                        "a direction not parallel to the axis {}",
+                        shown_list(axis.as_slice())
+                    ),
+                ));
+            }
+            ToolShape::Pyramid {
+                sides,
+                face_angle,
+                rounding_radius: positive(
+                    &t.rounding_radius,
+                    "rounding_radius",
+                    "the radius of the apex and the edges > 0 mm",
+                )?,
+                height: positive(
+                    &t.height,
+                    "height",
+                    "the pyramid's height from the apex to the base > 0 mm (enough to reach \
+                     through the die at full depth)",
+                )?,
+                edge_direction: projected.normalize(),
+            }
+        }
+        Kind::PolygonPlate => ToolShape::PlateWithPolygonHole {
+            punch: match &t.punch {
+                None => {
+                    return Err(check.missing(
+                        &key("punch"),
+                        "the name of the pyramid tool whose section the opening follows",
+                    ));
+                }
+                Some(p) => p.get_ref().clone(),
+            },
+            clearance: match &t.clearance {
+                None => {
+                    return Err(check.missing(
+                        &key("clearance"),
+                        "the clearance between the punch and the opening ≥ 0 mm",
+                    ));
+                }
+                Some(c) => check.range(
+                    c,
+                    &key("clearance"),
+                    |x| x >= 0.0,
+                    "a clearance ≥ 0 mm between the punch and the opening",
+                )?,
+            },
+            fillet_radius: positive(&t.fillet_radius, "fillet_radius", "a radius > 0 mm")?,
+            section_at: match &t.section_at {
+                None => None,
+                Some(v) => Some(vector3(check, v, &key("section_at"), false)?),
+            },
+            polygon: Vec::new(),
+            corner_radius: 0.0,
+        },
         Kind::Mesh => ToolShape::Mesh {
             path: match &t.file {
                 None => return Err(check.missing(&key("file"), "an STL or OBJ file")),
@@ -1320,12 +1572,20 @@ fn tool_spec(
             closed: t.closed.unwrap_or(true),
         },
     };
-    let geometry_keys: [(&str, bool); 7] = [
+    let geometry_keys: [(&str, bool); 15] = [
         ("radius", t.radius.is_some()),
         ("major_radius", t.major_radius.is_some()),
         ("minor_radius", t.minor_radius.is_some()),
         ("opening_radius", t.opening_radius.is_some()),
         ("fillet_radius", t.fillet_radius.is_some()),
+        ("sides", t.sides.is_some()),
+        ("face_angle_deg", t.face_angle_deg.is_some()),
+        ("rounding_radius", t.rounding_radius.is_some()),
+        ("height", t.height.is_some()),
+        ("edge_direction", t.edge_direction.is_some()),
+        ("punch", t.punch.is_some()),
+        ("clearance", t.clearance.is_some()),
+        ("section_at", t.section_at.is_some()),
         ("file", t.file.is_some()),
         ("scale", t.scale.is_some()),
     ];
@@ -1334,6 +1594,14 @@ fn tool_spec(
         Kind::Sphere | Kind::Cylinder => &["radius"],
         Kind::Torus => &["major_radius", "minor_radius"],
         Kind::Plate => &["opening_radius", "fillet_radius"],
+        Kind::Pyramid => &[
+            "sides",
+            "face_angle_deg",
+            "rounding_radius",
+            "height",
+            "edge_direction",
+        ],
+        Kind::PolygonPlate => &["punch", "clearance", "fillet_radius", "section_at"],
         Kind::Mesh => &["file", "scale"],
     };
     if let Some((extra, _)) = geometry_keys

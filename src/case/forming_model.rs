@@ -9,8 +9,8 @@ use nalgebra::{SymmetricEigen, Vector3};
 
 use super::forming::{FormingCase, PlyMesh, ToolMotion, ToolShape, ToolSpec};
 use crate::contact::{
-    Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole, RigidSurface,
-    Side, Sphere, Tessellation, Torus,
+    Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole,
+    PlateWithPolygonHole, RigidSurface, Side, Sphere, Tessellation, Torus,
 };
 use crate::element::BendingStiffness;
 use crate::material::{FibreFrame, MembraneMaterial, Sym2};
@@ -134,6 +134,30 @@ fn tool_surface(
             let outer = (opening_radius + fillet_radius + e).max(e);
             let drawing = shape
                 .tessellate(outer, fillet_radius + 10.0, DRAWN_SEGMENTS)
+                .map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::Pyramid { .. } => {
+            let (shape, placement) = super::forming::pyramid_of(spec)
+                .map_err(|x| context(&x))?
+                .ok_or_else(|| context(&"not a pyramid"))?;
+            let drawing = shape.tessellate(DRAWN_SEGMENTS).map_err(|x| context(&x))?;
+            placed(shape, placement, drawing)
+        }
+        ToolShape::PlateWithPolygonHole {
+            polygon,
+            corner_radius,
+            fillet_radius,
+            ..
+        } => {
+            let polygon: Vec<nalgebra::Vector2<f64>> = polygon
+                .iter()
+                .map(|p| nalgebra::Vector2::new(p[0], p[1]))
+                .collect();
+            let shape = PlateWithPolygonHole::new(&polygon, *corner_radius, *fillet_radius)
+                .map_err(|x| context(&x))?;
+            let drawing = shape
+                .tessellate(e, fillet_radius + 10.0, DRAWN_SEGMENTS)
                 .map_err(|x| context(&x))?;
             placed(shape, placement, drawing)
         }

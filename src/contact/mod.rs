@@ -1,6 +1,6 @@
-//! Rigid tools and contact: the surfaces a ply can touch (analytic shapes
-//! and triangle meshes), and the node-to-surface contact and friction
-//! kernels. A surface answers one question, "where is this point relative
+//! Rigid tools and contact: the surfaces a ply can touch (analytic shapes,
+//! round and polygonal, and triangle meshes), and the node-to-surface
+//! contact and friction kernels. A surface answers one question, "where is this point relative
 //! to me": its signed distance, the distance's gradient (the unit normal)
 //! and its Hessian (the curvature of the level sets), which is what the
 //! consistent contact tangent needs. See `docs/contact.md`.
@@ -8,11 +8,13 @@
 pub mod kernel;
 pub mod mesh_tool;
 pub mod ply_pair;
+pub mod pyramid;
 pub mod surface;
 pub mod tessellate;
 
 pub use kernel::{ContactError, ContactStatus, ToolCoupled, couple_tool_translation};
 pub use mesh_tool::{EdgeDefect, MeshOptions, MeshSurface, MeshToolError};
+pub use pyramid::{PlateWithPolygonHole, Pyramid, punch_opening};
 pub use surface::{
     Cylinder, Placed, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus,
 };
