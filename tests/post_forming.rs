@@ -172,3 +172,31 @@ fn a_projected_triangle_turned_over_has_no_measure() {
     let projected = projected_displacement(&tilted(&nodes, 120f64.to_radians()), 0..nodes.len());
     assert!((0..triangles.len()).all(|e| strain_measure(&model, e, &projected).is_none()));
 }
+
+/// Requirement: the deformation-mode map classifies an element by the
+/// signs of `I8 − 1` and `I11 − 1` (the paper's Fig. 2d), on homogeneous
+/// states whose invariants are known in closed form (`docs/theory.md`):
+/// roving slip `F = I + g a0⊗b0` gives `I8 = 1 + g²`, `I11 = 1`
+/// (transverse tension, mode 3); trellis shear gives `I8 = 1`,
+/// `I11 = cos γ` (mixed-mode 1: compaction, the stitching not stretched);
+/// the two together give `I8 > 1`, `I11 < 1` (mixed-mode 2); and the
+/// reference state is mode 0. Areas add up per mode.
+///
+/// Tolerance: exact (a classification); the states are chosen far from
+/// the 0.1 % band.
+#[test]
+fn deformation_modes_follow_the_signs_of_i8_and_i11() {
+    use ncform::post::forming::{deformation_mode, mode_areas};
+    let g: f64 = 0.2;
+    let gamma: f64 = 0.5;
+    assert_eq!(deformation_mode(1.0, 1.0), 0);
+    assert_eq!(deformation_mode(1.0 + g * g, 1.0), 3);
+    assert_eq!(deformation_mode(1.0, gamma.cos()), 1);
+    assert_eq!(deformation_mode(1.0 - 0.05, gamma.cos()), 1);
+    assert_eq!(deformation_mode(1.0 + g * g, gamma.cos()), 2);
+    assert_eq!(deformation_mode(0.9, 1.05), 4);
+    // Within 0.1 % of the reference: near the reference state.
+    assert_eq!(deformation_mode(1.0 + 5e-4, 1.0 - 5e-4), 0);
+    let areas = mode_areas(&[0, 1, 1, 2, 3, 4], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+    assert_eq!(areas, [1.0, 5.0, 4.0, 5.0, 6.0]);
+}

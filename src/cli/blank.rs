@@ -538,7 +538,8 @@ pub fn write_maps(
     u: &[f64],
     fields: &[ElementFields],
     dic: &[Option<StrainMeasures>],
-    paths: (&Path, &Path),
+    modes: &[u8],
+    paths: (&Path, &Path, &Path),
     caption: &str,
 ) -> Result<(), String> {
     let ply = &built.plies[p];
@@ -606,5 +607,14 @@ pub fn write_maps(
             .collect();
         write_contour_png_viewed(path, &maps, (2100, 720), case.camera)?;
     }
-    Ok(())
+    let mode_values: Vec<f64> = order.iter().map(|&e| f64::from(modes[e])).collect();
+    let map = ContourMap {
+        title: format!("deformation mode: formed ply, {view}, {caption}"),
+        points: &points,
+        triangles: &triangles,
+        values: &mode_values,
+        label: "mode: 0 none, 1 I11<1 I8≤1, 2 I11<1 I8>1, 3 I11≥1 I8>1, 4 I11≥1 I8≤1".into(),
+        range: Some((0.0, 4.0)),
+    };
+    write_contour_png_viewed(paths.2, &[map], (900, 720), case.camera)
 }

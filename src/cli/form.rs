@@ -168,6 +168,8 @@ pub struct FormingFigures {
     pub zones: Vec<(String, String, [f64; 2], [f64; 2])>,
     /// The history rows at the output states.
     pub states: Vec<FormingRow>,
+    /// Per output state and ply, the area of each deformation mode.
+    pub deformation_modes: Vec<ModeAreas>,
 }
 
 /// A ply's size.
@@ -231,6 +233,22 @@ struct Sink<'a> {
     readout: Readout,
     outline_states: Vec<OutlineState>,
     state_rows: Vec<FormingRow>,
+    mode_states: Vec<ModeAreas>,
+}
+
+/// The area of each deformation mode of one ply at one output state.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModeAreas {
+    /// The stroke \[mm\] (or `λ` without a stroke tool).
+    pub stroke: f64,
+    /// The ply.
+    pub ply: String,
+    /// Reference area \[mm²\] of the elements in mode 0 (near the
+    /// reference state), 1 (`I11 < 1`, `I8 ≤ 1`: mixed-mode 1), 2
+    /// (`I11 < 1`, `I8 > 1`: mixed-mode 2), 3 (`I11 ≥ 1`, `I8 > 1`) and 4
+    /// (`I11 ≥ 1`, `I8 ≤ 1`), each to 0.1 %
+    /// ([`crate::post::forming::deformation_mode`]).
+    pub areas: [f64; crate::post::forming::MODES],
 }
 
 impl Sink<'_> {
@@ -374,9 +392,12 @@ impl Sink<'_> {
                 self.out
                     .join("maps")
                     .join(format!("{stem}-dic_{index:04}.png")),
+                self.out
+                    .join("maps")
+                    .join(format!("{stem}-modes_{index:04}.png")),
             );
             let written = write_ply_state(
-                (&path, &dic_path, (&maps.0, &maps.1)),
+                (&path, &dic_path, (&maps.0, &maps.1, &maps.2)),
                 self.case,
                 self.built,
                 p,
@@ -384,8 +405,15 @@ impl Sink<'_> {
                 load,
                 &caption,
             );
-            if let Err(e) = written {
-                self.io_error.get_or_insert(e);
+            match written {
+                Ok(areas) => self.mode_states.push(ModeAreas {
+                    stroke: row.stroke,
+                    ply: ply.name.clone(),
+                    areas,
+                }),
+                Err(e) => {
+                    self.io_error.get_or_insert(e);
+                }
             }
             self.pvd.push(PvdEntry {
                 time: load,
@@ -518,16 +546,17 @@ fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> P
 
 /// One ply at an output state: its VTU (with the image-correlation fields
 /// beside the true ones), the VTU of its projection on the blank plane, and
-/// its maps (`paths`: ply VTU, projection VTU, the two map PNGs).
+/// its maps (`paths`: ply VTU, projection VTU, the three map PNGs);
+/// returns the reference area of each deformation mode.
 fn write_ply_state(
-    paths: (&Path, &Path, (&Path, &Path)),
+    paths: (&Path, &Path, (&Path, &Path, &Path)),
     case: &FormingCase,
     built: &FormingModel,
     p: usize,
     snapshot: &Snapshot,
     load: f64,
     caption: &str,
-) -> Result<(), String> {
+) -> Result<[f64; crate::post::forming::MODES], String> {
     let (path, dic_path, map_paths) = paths;
     let ply = &built.plies[p];
     let u = snapshot.u;
@@ -571,8 +600,18 @@ fn write_ply_state(
     };
     let columns = FieldColumns::new(&fields);
     let contact = ply_contact(built, p, snapshot.model);
+    let modes: Vec<u8> = fields
+        .iter()
+        .map(|f| crate::post::forming::deformation_mode(f.i8, f.i11))
+        .collect();
+    let mode_codes: Vec<i32> = modes.iter().map(|m| i32::from(*m)).collect();
+    let areas: Vec<f64> = ply.membrane.references.iter().map(|r| r.area).collect();
     let mut cell_fields = columns.cell_fields();
     cell_fields.extend(dic_fields());
+    cell_fields.push(Field {
+        name: "deformation_mode",
+        data: FieldData::Int(&mode_codes),
+    });
     let dic_note = "dic_*: gamma, E22, E_perp recomputed on the mesh projected on the blank plane (2D image correlation, docs/forming.md); 0 where dic_valid = 0 (projected triangle turned over)";
     let piece = VtuPiece {
         points: &points,
@@ -641,6 +680,7 @@ fn write_ply_state(
             "S: second Piola-Kirchhoff stress [MPa] in the reference global x-y axes (xx, yy, xy)"
                 .into(),
             dic_note.into(),
+            "deformation_mode (to 0.1 %): 0 near the reference state, 1 I11<1 & I8<=1 (mixed-mode 1), 2 I11<1 & I8>1 (mixed-mode 2), 3 I11>=1 & I8>1, 4 I11>=1 & I8<=1 (docs/forming.md)".into(),
         ],
     };
     write_vtu(path, &piece).map_err(|e| io_err(path, e))?;
@@ -670,7 +710,8 @@ fn write_ply_state(
         ],
     };
     write_vtu(dic_path, &dic_piece).map_err(|e| io_err(dic_path, e))?;
-    write_maps(case, built, p, u, &fields, &dic, map_paths, caption)
+    write_maps(case, built, p, u, &fields, &dic, &modes, map_paths, caption)?;
+    Ok(crate::post::forming::mode_areas(&modes, &areas))
 }
 
 /// Runs a forming case and writes its outputs into `out`.
@@ -702,6 +743,7 @@ pub fn run_forming(
         readout,
         outline_states: Vec::new(),
         state_rows: Vec::new(),
+        mode_states: Vec::new(),
     };
     let report = match case.solver_kind {
         SolverKind::QuasiStatic => {
@@ -848,6 +890,7 @@ pub fn run_forming(
                 })
                 .collect(),
             states: std::mem::take(&mut sink.state_rows),
+            deformation_modes: std::mem::take(&mut sink.mode_states),
         },
         history: std::mem::take(&mut sink.history),
     };

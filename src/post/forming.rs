@@ -283,3 +283,45 @@ pub fn projected_displacement(u: &[f64], nodes: std::ops::Range<usize>) -> Vec<f
     }
     projected
 }
+
+/// Strain below which `I8 − 1` and `I11 − 1` count as zero when an element
+/// is classified ([`deformation_mode`]): 0.1 %, far above round-off and
+/// below any strain the maps show.
+pub const MODE_TOLERANCE: f64 = 1.0e-3;
+
+/// The deformation mode of an element from the signs of `I8 − 1`
+/// (stitching) and `I11 − 1` (across the rovings), after the paper's
+/// Fig. 2d (Section 5.3), each sign counted only beyond
+/// [`MODE_TOLERANCE`] (`tol`): 0 near the reference state (both within
+/// `tol` of 0); 1 mixed-mode 1, `I11 < 1 − tol` with `I8 ≤ 1 + tol`
+/// (shear and compaction, the stitching not stretched); 2 mixed-mode 2,
+/// `I11 < 1 − tol` with `I8 > 1 + tol` (compaction with the stitching
+/// stretched: roving slippage); 3 `I11 ≥ 1 − tol` with `I8 > 1 + tol`
+/// (transverse tension); 4 `I11 ≥ 1 − tol` with `I8 ≤ 1 + tol`, not 0.
+pub fn deformation_mode(i8: f64, i11: f64) -> u8 {
+    let (stitching, across) = (i8 - 1.0, i11 - 1.0);
+    if stitching.abs() <= MODE_TOLERANCE && across.abs() <= MODE_TOLERANCE {
+        return 0;
+    }
+    let stretched = stitching > MODE_TOLERANCE;
+    let compacted = across < -MODE_TOLERANCE;
+    match (compacted, stretched) {
+        (true, false) => 1,
+        (true, true) => 2,
+        (false, true) => 3,
+        (false, false) => 4,
+    }
+}
+
+/// Number of deformation modes ([`deformation_mode`] gives `0..MODES`).
+pub const MODES: usize = 5;
+
+/// The reference area \[mm²\] of the elements in each deformation mode:
+/// `modes[e]` of element `e` of reference area `areas[e]`.
+pub fn mode_areas(modes: &[u8], areas: &[f64]) -> [f64; MODES] {
+    let mut sums = [0.0; MODES];
+    for (m, a) in modes.iter().zip(areas) {
+        sums[(*m as usize).min(MODES - 1)] += a;
+    }
+    sums
+}
