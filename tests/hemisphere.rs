@@ -25,14 +25,15 @@ fn cases_dir() -> PathBuf {
 /// The shipped case `name` with a `cells × cells` blank and the edits.
 fn coarse(name: &str, cells: usize, edits: &[(&str, &str)]) -> FormingCase {
     let mut text = fs::read_to_string(cases_dir().join(name)).unwrap();
-    let mut all = vec![(
-        "cells = [84, 84]".to_string(),
-        format!("cells = [{cells}, {cells}]"),
-    )];
-    all.extend(edits.iter().map(|(a, b)| (a.to_string(), b.to_string())));
-    for (from, to) in &all {
-        assert!(text.contains(from.as_str()), "`{from}` not in {name}");
-        text = text.replacen(from.as_str(), to, 1);
+    assert!(
+        text.contains("cells = [84, 84]"),
+        "no 84-cell blank in {name}"
+    );
+    // Every ply's blank.
+    text = text.replace("cells = [84, 84]", &format!("cells = [{cells}, {cells}]"));
+    for (from, to) in edits {
+        assert!(text.contains(from), "`{from}` not in {name}");
+        text = text.replacen(from, to, 1);
     }
     FormingCase::from_toml_str(&text, name, &cases_dir()).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -44,14 +45,21 @@ fn run(case: &FormingCase, out: &Path) -> FormingSummary {
 }
 
 /// The outer contour of `outer_contour.csv`: reference and final
-/// positions per boundary node.
+/// positions per boundary node (of the first ply).
 fn final_contour(out: &Path) -> Vec<([f64; 2], [f64; 2])> {
+    ply_contour(out, 1)
+}
+
+/// The outer contour of ply `ply` (1-based, the CSV's first column).
+fn ply_contour(out: &Path, ply: usize) -> Vec<([f64; 2], [f64; 2])> {
     let text = fs::read_to_string(out.join("outer_contour.csv")).unwrap();
     let mut rows = Vec::new();
     for line in text.lines().filter(|l| !l.starts_with('#')).skip(1) {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
         let n = v.len();
-        rows.push(([v[2], v[3]], [v[n - 2], v[n - 1]]));
+        if v[0] as usize == ply {
+            rows.push(([v[2], v[3]], [v[n - 2], v[n - 1]]));
+        }
     }
     rows
 }
@@ -152,6 +160,45 @@ fn hemisphere_45_explicit_contour_is_symmetric_about_the_rovings() {
     let contour = final_contour(out.path());
     let about_diagonal = mirror_deviation(&contour, |p| [p[1], p[0]]);
     assert!(about_diagonal < 1.0, "{about_diagonal}");
+}
+
+/// Requirement (two plies, ply–ply contact): the explicit [0°/90°] run
+/// completes with its energy balance within 1 % (the limit, the
+/// case's warning level; ply–ply contact's stored and dissipated energy
+/// in the balance); both plies' contours are mirror-symmetric about both
+/// blank axes within 1 mm (a [0°] ply and a [90°] ply are each symmetric
+/// about both, and so is the bench); and both plies draw in at every edge
+/// midpoint.
+///
+/// Not asserted, because it does not hold yet: the kinetic energy
+/// below 5 % of the internal energy. The two-ply runs show kinetic-energy
+/// bursts at 25–30 mm of stroke in the plies (not the blankholder):
+/// 16.9 % at 20 cells, 9 % at 42 (`docs/validation.md`); the case's
+/// warning reports it.
+#[test]
+fn hemisphere_0_90_explicit_is_balanced_and_symmetric() {
+    let case = coarse("hemisphere-0-90.toml", COARSE_CELLS, &[]);
+    let out = TempDir::new().unwrap();
+    let summary = run(&case, out.path());
+    let explicit = summary.explicit.as_ref().unwrap();
+    assert!(
+        explicit.max_relative_balance_error < 0.01,
+        "balance {}",
+        explicit.max_relative_balance_error
+    );
+    for ply in [1, 2] {
+        let contour = ply_contour(out.path(), ply);
+        let about_x = mirror_deviation(&contour, |p| [p[0], -p[1]]);
+        let about_y = mirror_deviation(&contour, |p| [-p[0], p[1]]);
+        assert!(
+            about_x < 1.0 && about_y < 1.0,
+            "ply {ply}: {about_x} {about_y}"
+        );
+    }
+    let last = summary.forming.states.last().unwrap();
+    for draw_in in &last.draw_in {
+        assert!(draw_in[..4].iter().all(|d| *d > 0.0), "{draw_in:?}");
+    }
 }
 
 /// The punch force of each history row against its stroke.

@@ -38,6 +38,12 @@ const NODE_CHUNK: usize = 256;
 /// motion within one time increment (below 1e-3 mm in the benches).
 const CULL_MARGIN: f64 = 0.25;
 
+/// Round-off allowance of the closing rule \[mm\]: a pair closes when its
+/// penetration is at most twice the node's relative motion in the
+/// increment plus this (far above the round-off of millimetre
+/// coordinates, far below any penetration).
+const ENTRY_TOLERANCE: f64 = 1e-9;
+
 /// One ply's side of a ply–ply contact: its nodes (model numbering), their
 /// reference positions, its triangles (local node numbering) and its
 /// thickness.
@@ -451,6 +457,7 @@ impl Term for PlyContact {
         self.update_positions(state.u);
         self.refresh_lists(false);
         let dt = state.time_step;
+        let offset = self.offset;
         let cull = self.offset + CULL_MARGIN;
         for k in 0..2 {
             let other = 1 - k;
@@ -502,6 +509,27 @@ impl Term for PlyContact {
                                 && p.distance <= cull
                             {
                                 contact = Some((t, point.weights, p));
+                            }
+                        }
+                        // A pair closes only where the node reaches the
+                        // other ply within this increment (its penetration
+                        // at most twice its relative motion): a node found
+                        // already deep (beside a free edge that turned to
+                        // face it, or across a fold) would start with spring
+                        // energy that no work put in.
+                        if let Some((t, w, p)) = &contact
+                            && s.status == ContactStatus::Open
+                            && s.spring == Vector3::zeros()
+                        {
+                            let tri = &triangles[*t];
+                            let under = |xs: &[Vector3<f64>]| {
+                                w[0] * xs[tri[0]] + w[1] * xs[tri[1]] + w[2] * xs[tri[2]]
+                            };
+                            let step = ((x - under(surface))
+                                - (slaves_prev[i] - under(surface_prev)))
+                            .norm();
+                            if p.distance - offset < -(2.0 * step + ENTRY_TOLERANCE) {
+                                contact = None;
                             }
                         }
                         if contact.is_none()
