@@ -24,6 +24,9 @@ from the deformed positions alone, sharing no code with ncform:
 * `zones`: the area-weighted mean and standard deviation of gamma over the
   elements whose reference centroid lies in each zone window, against
   `forming.csv`, to 1e-9 deg;
+* `modes`: every element's deformation mode from the signs of the
+  recomputed I8 - 1 and I11 - 1 (beyond 1e-3), against the VTU field, and
+  the zones' shares of mixed-modes 1 and 2 against `forming.csv`;
 * `symmetry`: the final contour mirror-symmetric about both blank axes
   within 1 mm (the issue's limit);
 * `energy`: KE/IE below 5 % from 10 % of the stroke on and the energy
@@ -224,6 +227,31 @@ def main():
                       abs(std - last[col[f"zone {name} shear angle std [deg]"]]))
     check("zones", len(zones) == 3 and worst_z < 1e-9,
           f"{len(zones)} zones: mean and std of gamma recomputed, largest difference {worst_z:.2e} deg")
+
+    # Deformation modes from the recomputed E22 = I8 - 1 and E_perp = I11 - 1
+    # (signs beyond 1e-3), against the VTU field and the zones' shares.
+    tol = 1e-3
+    e22, ep = m[:, 1], m[:, 2]
+    near = (np.abs(e22) <= tol) & (np.abs(ep) <= tol)
+    stretched, compacted = e22 > tol, ep < -tol
+    modes = np.where(near, 0, np.where(compacted, np.where(stretched, 2, 1),
+                                       np.where(stretched, 3, 4)))
+    # Elements within 1e-12 of a threshold could fall either way by
+    # round-off: leave them out of the comparison.
+    clear = ((np.abs(np.abs(e22) - tol) > 1e-12) & (np.abs(np.abs(ep) - tol) > 1e-12))
+    mismatched = int(np.sum((modes != cell["deformation_mode"]) & clear))
+    worst_m = 0.0
+    for name, _ply, centre_z, size in zones:
+        inside = ((np.abs(centroids[:, 0] - centre_z[0]) <= 0.5 * size[0])
+                  & (np.abs(centroids[:, 1] - centre_z[1]) <= 0.5 * size[1]) & (m[:, 3] > 0))
+        w = area[inside]
+        for k in (1, 2):
+            share = float(np.sum(w[modes[inside] == k]) / np.sum(w))
+            worst_m = max(worst_m, abs(share - last[col[f"zone {name} mixed-mode {k} share [-]"]]))
+    check("modes", mismatched == 0 and worst_m < 1e-9,
+          f"deformation modes of {len(tri)} elements from the signs of I8 - 1 and I11 - 1: "
+          f"{mismatched} differ from the VTU field; zone shares of mixed-modes 1 and 2 "
+          f"recomputed, largest difference {worst_m:.2e}")
 
     final_pos = {tuple(np.round(ref[n, :2], 6)): cur[n, :2] for n in loop}
     dev = 0.0

@@ -16,8 +16,8 @@ use crate::post::contour::{ContourMap, write_contour_png_viewed};
 use crate::post::csv::write_csv;
 use crate::post::fields::ElementFields;
 use crate::post::forming::{
-    DrawInPoint, StrainMeasures, boundary_displacement, draw_in, draw_in_points, outer_boundary,
-    strain_measure, strain_measures, weighted_mean_std,
+    DrawInPoint, StrainMeasures, boundary_displacement, deformation_mode, draw_in, draw_in_points,
+    mode_areas, outer_boundary, strain_measure, strain_measures, weighted_mean_std,
 };
 use crate::post::plot::{Panel, Series, Series as Outline, write_outlines_png, write_panels};
 
@@ -40,6 +40,9 @@ pub struct ZoneValue {
     pub e22_mean: f64,
     /// Mean `E⊥`.
     pub e_perp_mean: f64,
+    /// Share of the zone's area in each deformation mode 0–4
+    /// ([`crate::post::forming::deformation_mode`]) \[-\].
+    pub mode_fractions: [f64; crate::post::forming::MODES],
 }
 
 /// What is read on the blanks of a forming case.
@@ -164,11 +167,22 @@ impl Readout {
                     weighted_mean_std(measures.iter().map(|(a, m)| (*a, f(m))))
                 };
                 let (shear_angle_mean, shear_angle_std) = of(|m| m.shear_angle_deg);
+                let modes: Vec<u8> = measures
+                    .iter()
+                    .map(|(_, m)| deformation_mode(1.0 + m.e22, 1.0 + m.e_perp))
+                    .collect();
+                let areas: Vec<f64> = measures.iter().map(|(a, _)| *a).collect();
+                let total: f64 = areas.iter().sum();
+                let mut mode_fractions = mode_areas(&modes, &areas);
+                for f in &mut mode_fractions {
+                    *f = if total > 0.0 { *f / total } else { 0.0 };
+                }
                 ZoneValue {
                     shear_angle_mean,
                     shear_angle_std,
                     e22_mean: of(|m| m.e22).0,
                     e_perp_mean: of(|m| m.e_perp).0,
+                    mode_fractions,
                 }
             })
             .collect()
@@ -365,6 +379,8 @@ pub fn write_forming_history(
         header.push(format!("zone {} shear angle std [deg]", z.zone.name));
         header.push(format!("zone {} E22 mean [-]", z.zone.name));
         header.push(format!("zone {} E_perp mean [-]", z.zone.name));
+        header.push(format!("zone {} mixed-mode 1 share [-]", z.zone.name));
+        header.push(format!("zone {} mixed-mode 2 share [-]", z.zone.name));
     }
     let data: Vec<Vec<f64>> = rows
         .iter()
@@ -380,6 +396,8 @@ pub fn write_forming_history(
                     z.shear_angle_std,
                     z.e22_mean,
                     z.e_perp_mean,
+                    z.mode_fractions[1],
+                    z.mode_fractions[2],
                 ]);
             }
             row
