@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use super::term::{Augmentation, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure};
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
-    PenaltyContact, PenaltyState, couple_tool_translation, max_curvature,
+    PenaltyContact, PenaltyState, couple_tool_translation, max_curvature, normal_dashpot,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
 
@@ -577,19 +577,10 @@ impl Term for ToolContact {
                         let motion = y - s.previous_position;
                         match springs[i].update_trusted(s, &y, point.as_ref()) {
                             Ok(r) => {
-                                let mut residual = r.residual;
                                 // Normal dashpot on the approach velocity while in
                                 // contact, never pulling the node onto the tool.
-                                let mut dashpot = Vector3::zeros();
-                                if r.gap < 0.0 && dt > 0.0 && dashpots[i] > 0.0 {
-                                    let approach = -r.normal.dot(&motion);
-                                    let force = (dashpots[i] * approach / dt).max(-r.normal_force);
-                                    dashpot = force * r.normal;
-                                    residual -= dashpot;
-                                }
-                                let (energy, previous) = dissipated;
-                                *energy -= 0.5 * (*previous + dashpot).dot(&motion);
-                                *previous = dashpot;
+                                let residual = r.residual
+                                    - normal_dashpot(dashpots[i], &r, &motion, dt, dissipated);
                                 fi[..3].copy_from_slice(residual.as_slice());
                                 fi[3] = 0.0;
                                 sum -= direction.dot(&residual);

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 
 use super::term::{Masses, State, Stencils, Term, TermEnergy, TermFailure};
 use crate::contact::SurfaceNormal;
-use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState};
+use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
 use crate::contact::ply_pair::{
     CandidateLists, closest_candidate, signed_distance, triangle_boxes,
 };
@@ -564,17 +564,8 @@ impl Term for PlyContact {
                             Ok(r) => r,
                             Err(_) => return Some(i),
                         };
-                        let mut residual = r.residual;
-                        let mut dashpot = Vector3::zeros();
-                        if r.gap < 0.0 && dt > 0.0 && dashpots[i] > 0.0 {
-                            let approach = -r.normal.dot(&motion);
-                            let force = (dashpots[i] * approach / dt).max(-r.normal_force);
-                            dashpot = force * r.normal;
-                            residual -= dashpot;
-                        }
-                        let (energy, previous) = damped;
-                        *energy -= 0.5 * (*previous + dashpot).dot(&motion);
-                        *previous = dashpot;
+                        let residual =
+                            r.residual - normal_dashpot(dashpots[i], &r, &motion, dt, damped);
                         *hit = match weights {
                             Some((t, w)) if r.status != ContactStatus::Open => Hit {
                                 triangle: t as u32,

@@ -479,3 +479,32 @@ impl PenaltyResponse {
         self.normal_energy + self.tangential_energy
     }
 }
+
+/// The normal dashpot of a penalty pair for the explicit path
+/// (`docs/contact.md`, "Explicit path"): while the pair penetrates
+/// (`response.gap < 0`), the force `c · (−n·Δy)/Δt` along the normal on
+/// the approach velocity, never pulling the node onto the surface (at
+/// least `−f_N`); `Δy = motion` over the step `time_step` \[s\] with the
+/// dashpot `c` [N·s/mm]. Returns the dashpot's force on the node (to be
+/// subtracted from the residual) and adds its dissipation, the
+/// trapezoidal work `−½ (F_{n−1} + F_n)·Δy`, to `dissipated` (energy
+/// \[N·mm\], the last force \[N\]).
+#[inline]
+pub fn normal_dashpot(
+    dashpot: f64,
+    response: &PenaltyResponse,
+    motion: &Vector3<f64>,
+    time_step: f64,
+    dissipated: &mut (f64, Vector3<f64>),
+) -> Vector3<f64> {
+    let mut force_vector = Vector3::zeros();
+    if response.gap < 0.0 && time_step > 0.0 && dashpot > 0.0 {
+        let approach = -response.normal.dot(motion);
+        let force = (dashpot * approach / time_step).max(-response.normal_force);
+        force_vector = force * response.normal;
+    }
+    let (energy, previous) = dissipated;
+    *energy -= 0.5 * (*previous + force_vector).dot(motion);
+    *previous = force_vector;
+    force_vector
+}

@@ -30,7 +30,8 @@ pub mod explicit;
 pub mod implicit;
 
 pub use explicit::{
-    PenaltyContact, PenaltyResponse, PenaltyState, max_curvature, stable_penalty_stiffness,
+    PenaltyContact, PenaltyResponse, PenaltyState, max_curvature, normal_dashpot,
+    stable_penalty_stiffness,
 };
 pub use implicit::{
     AugmentationNorms, AugmentationReport, AugmentedLagrangian, ImplicitContactState,
