@@ -170,7 +170,8 @@ fn hemisphere_45_explicit_contour_is_symmetric_about_the_rovings() {
 /// Not asserted, because they do not hold yet (`docs/validation.md`): the
 /// issue's kinetic energy below 5 % of the internal energy (the two-ply
 /// runs show kinetic-energy bursts in the plies from about 25 mm of
-/// stroke: 16.9 % at 20 cells, 9.0 % at 42; the case's warning reports it),
+/// stroke: 16.9 % at 20 cells, 9.0 % at 42, 15.8 % at 84; the case's
+/// warning reports it),
 /// and the contours' mirror symmetry about the blank axes within 1 mm
 /// (1.5 mm at 20 cells), which the bursts break.
 #[test]
