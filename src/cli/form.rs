@@ -475,8 +475,9 @@ fn write_tool_vtu(
 }
 
 /// Per node of ply `p`, the contact figures summed (forces, slip) or
-/// combined (status: the largest, gap: the smallest) over every tool.
-struct PlyContact {
+/// combined (status: the largest, gap: the smallest) over every tool, and
+/// likewise over every ply–ply contact.
+struct ContactFields {
     status: Vec<i32>,
     normal_force: Vec<f64>,
     pressure: Vec<f64>,
@@ -490,10 +491,10 @@ struct PlyContact {
     ply_gap: Vec<f64>,
 }
 
-fn ply_contact(built: &FormingModel, p: usize, model: &crate::model::Model) -> PlyContact {
+fn contact_fields(built: &FormingModel, p: usize, model: &crate::model::Model) -> ContactFields {
     let ply = &built.plies[p];
     let count = ply.mesh.nodes.len();
-    let mut c = PlyContact {
+    let mut c = ContactFields {
         status: vec![0; count],
         normal_force: vec![0.0; count],
         pressure: vec![0.0; count],
@@ -599,7 +600,7 @@ fn write_ply_state(
         ]
     };
     let columns = FieldColumns::new(&fields);
-    let contact = ply_contact(built, p, snapshot.model);
+    let contact = contact_fields(built, p, snapshot.model);
     let modes: Vec<u8> = fields
         .iter()
         .map(|f| crate::post::forming::deformation_mode(f.i8, f.i11))
@@ -613,62 +614,57 @@ fn write_ply_state(
         data: FieldData::Int(&mode_codes),
     });
     let dic_note = "dic_*: gamma, E22, E_perp recomputed on the mesh projected on the blank plane (2D image correlation, docs/forming.md); 0 where dic_valid = 0 (projected triangle turned over)";
+    let mut point_fields = vec![
+        Field {
+            name: "displacement",
+            data: FieldData::Vector3(&displacement),
+        },
+        Field {
+            name: "contact_status",
+            data: FieldData::Int(&contact.status),
+        },
+        Field {
+            name: "contact_pressure",
+            data: FieldData::Scalar(&contact.pressure),
+        },
+        Field {
+            name: "contact_normal_force",
+            data: FieldData::Scalar(&contact.normal_force),
+        },
+        Field {
+            name: "friction_force",
+            data: FieldData::Scalar(&contact.friction_force),
+        },
+        Field {
+            name: "slip",
+            data: FieldData::Scalar(&contact.slip),
+        },
+    ];
+    if snapshot
+        .model
+        .terms_of::<crate::model::PlyContact>()
+        .next()
+        .is_some()
+    {
+        point_fields.extend([
+            Field {
+                name: "ply_contact_status",
+                data: FieldData::Int(&contact.ply_status),
+            },
+            Field {
+                name: "ply_contact_normal_force",
+                data: FieldData::Scalar(&contact.ply_normal_force),
+            },
+            Field {
+                name: "ply_contact_gap",
+                data: FieldData::Scalar(&contact.ply_gap),
+            },
+        ]);
+    }
     let piece = VtuPiece {
         points: &points,
         triangles: &ply.mesh.triangles,
-        point_fields: vec![
-            Field {
-                name: "displacement",
-                data: FieldData::Vector3(&displacement),
-            },
-            Field {
-                name: "contact_status",
-                data: FieldData::Int(&contact.status),
-            },
-            Field {
-                name: "contact_pressure",
-                data: FieldData::Scalar(&contact.pressure),
-            },
-            Field {
-                name: "contact_normal_force",
-                data: FieldData::Scalar(&contact.normal_force),
-            },
-            Field {
-                name: "friction_force",
-                data: FieldData::Scalar(&contact.friction_force),
-            },
-            Field {
-                name: "slip",
-                data: FieldData::Scalar(&contact.slip),
-            },
-        ]
-        .into_iter()
-        .chain(
-            (snapshot
-                .model
-                .terms_of::<crate::model::PlyContact>()
-                .next()
-                .is_some())
-            .then(|| {
-                [
-                    Field {
-                        name: "ply_contact_status",
-                        data: FieldData::Int(&contact.ply_status),
-                    },
-                    Field {
-                        name: "ply_contact_normal_force",
-                        data: FieldData::Scalar(&contact.ply_normal_force),
-                    },
-                    Field {
-                        name: "ply_contact_gap",
-                        data: FieldData::Scalar(&contact.ply_gap),
-                    },
-                ]
-            })
-            .into_iter()
-            .flatten(),
-        )
-        .collect(),
+        point_fields,
         cell_fields,
         comment: vec![
             format!(

@@ -170,6 +170,21 @@ pub fn signed_distance(
     })
 }
 
+/// The side (±1) of the other ply's mid-surface that a node at `x` is on,
+/// from its closest point `closest` on a triangle of unit normal
+/// `face_normal`: the sign of `n·(x − c)`; `None` where the node is beside
+/// a free edge ([`MIN_FACING`]) or on the surface, so that no side can be
+/// told.
+pub fn side_of(
+    x: &Vector3<f64>,
+    closest: &TrianglePoint,
+    face_normal: &Vector3<f64>,
+) -> Option<f64> {
+    let e = x - closest.point;
+    let along = face_normal.dot(&e);
+    (along != 0.0 && along.abs() >= MIN_FACING * e.norm()).then(|| along.signum())
+}
+
 /// The unit normal `(b − a) × (c − a) / |…|` of a triangle (zero for a
 /// degenerate one).
 #[inline]

@@ -27,13 +27,12 @@ use std::f64::consts::{PI, TAU};
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
-use super::surface::{Placement, SINGULAR_FRACTION, ShapeError, Sphere, positive_finite};
-use super::tessellate::Tessellation;
+use super::surface::{
+    Placement, SINGULAR_FRACTION, ShapeError, Sphere, all_finite, non_negative_finite,
+    positive_finite,
+};
+use super::tessellate::{Tessellation, divisions, plate_profile};
 use super::{RigidSurface, SurfaceNormal, SurfacePoint};
-
-fn all_finite(x: &Vector3<f64>) -> bool {
-    x.iter().all(|c| c.is_finite())
-}
 
 /// Where the closest point of a core lies: the Hessian of its distance.
 #[derive(Debug, Clone, Copy)]
@@ -509,19 +508,8 @@ impl PlateWithPolygonHole {
                 expected: "at least 3 vertices".into(),
             });
         }
-        for (parameter, value) in [
-            ("corner_radius", corner_radius),
-            ("fillet_radius", fillet_radius),
-        ] {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(ShapeError::Parameter {
-                    shape,
-                    parameter,
-                    value,
-                    expected: "a finite length >= 0 [mm]".into(),
-                });
-            }
-        }
+        non_negative_finite(shape, "corner_radius", corner_radius)?;
+        non_negative_finite(shape, "fillet_radius", fillet_radius)?;
         if corner_radius + fillet_radius <= 0.0 {
             return Err(ShapeError::Parameter {
                 shape,
@@ -720,14 +708,7 @@ impl PlateWithPolygonHole {
     ) -> Result<Tessellation, ShapeError> {
         let shape = "plate with polygon hole tessellation";
         let outer = positive_finite(shape, "outer", outer)?;
-        if !(wall_length.is_finite() && wall_length >= 0.0) {
-            return Err(ShapeError::Parameter {
-                shape,
-                parameter: "wall_length",
-                value: wall_length,
-                expected: "a finite length >= 0 [mm]".into(),
-            });
-        }
+        let wall_length = non_negative_finite(shape, "wall_length", wall_length)?;
         if segments < 3 {
             return Err(ShapeError::Parameter {
                 shape,
@@ -739,30 +720,13 @@ impl PlateWithPolygonHole {
         let (ro, rf) = (self.corner_radius, self.fillet_radius);
         // The profile (w, z): w the in-plane distance from Q; free side on
         // the left when run up the wall, over the fillet, out the face.
-        let mut profile: Vec<Vector2<f64>> = Vec::new();
         let step = (TAU * (ro + rf).max(1.0) / segments as f64).max(1.0);
-        if wall_length > 0.0 {
-            let n = ((wall_length / step).ceil() as usize).max(1);
-            for k in 0..n {
-                profile.push(Vector2::new(
-                    ro,
-                    -rf - wall_length * (n - k) as f64 / n as f64,
-                ));
-            }
-        }
-        let arc = if rf > 0.0 { segments.div_ceil(4) } else { 0 };
-        for k in 0..=arc {
-            let a = if arc == 0 {
-                PI
-            } else {
-                PI - 0.5 * PI * k as f64 / arc as f64
-            };
-            profile.push(Vector2::new(ro + rf + rf * a.cos(), -rf + rf * a.sin()));
-        }
-        let n = ((outer / (4.0 * step)).ceil() as usize).max(1);
-        for k in 1..=n {
-            profile.push(Vector2::new(ro + rf + outer * k as f64 / n as f64, 0.0));
-        }
+        let profile = plate_profile(
+            (ro, rf),
+            (wall_length, divisions(wall_length, step)),
+            if rf > 0.0 { segments.div_ceil(4) } else { 0 },
+            (outer, divisions(outer, 4.0 * step)),
+        );
         // The outline of Q: (base point, outward normal), counter-clockwise;
         // each vertex's arc of normals from the previous edge's to the next.
         let m = self.vertices.len();
@@ -863,14 +827,7 @@ pub fn punch_opening(
     section_at: &Vector3<f64>,
     clearance: f64,
 ) -> Result<(Vec<Vector2<f64>>, f64), ShapeError> {
-    if !(clearance.is_finite() && clearance >= 0.0) {
-        return Err(ShapeError::Parameter {
-            shape: "punch opening",
-            parameter: "clearance",
-            value: clearance,
-            expected: "a finite length >= 0 [mm]".into(),
-        });
-    }
+    let clearance = non_negative_finite("punch opening", "clearance", clearance)?;
     let axis = punch_placement.axis();
     let plate_axis = plate.axis();
     if axis.dot(&plate_axis).abs() < 1.0 - 1e-9 {

@@ -77,7 +77,26 @@ pub(crate) fn positive_finite(
     }
 }
 
-fn all_finite(x: &Vector3<f64>) -> bool {
+/// `value` if it is finite and not negative, else the error naming it.
+pub(crate) fn non_negative_finite(
+    shape: &'static str,
+    parameter: &'static str,
+    value: f64,
+) -> Result<f64, ShapeError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(ShapeError::Parameter {
+            shape,
+            parameter,
+            value,
+            expected: "a finite length >= 0 [mm]".into(),
+        })
+    }
+}
+
+/// `true` when every component of `x` is finite.
+pub(crate) fn all_finite(x: &Vector3<f64>) -> bool {
     x.iter().all(|c| c.is_finite())
 }
 
@@ -801,14 +820,7 @@ impl PlateWithHole {
     /// that is negative or not finite.
     pub fn new(opening_radius: f64, fillet_radius: f64) -> Result<Self, ShapeError> {
         let opening_radius = positive_finite("plate with hole", "opening_radius", opening_radius)?;
-        if !(fillet_radius.is_finite() && fillet_radius >= 0.0) {
-            return Err(ShapeError::Parameter {
-                shape: "plate with hole",
-                parameter: "fillet_radius",
-                value: fillet_radius,
-                expected: "a finite length >= 0 [mm]".into(),
-            });
-        }
+        let fillet_radius = non_negative_finite("plate with hole", "fillet_radius", fillet_radius)?;
         Ok(Self {
             opening_radius,
             fillet_radius,

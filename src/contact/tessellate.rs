@@ -16,7 +16,8 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use nalgebra::{Vector2, Vector3};
 
 use super::surface::{
-    Cylinder, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus, positive_finite,
+    Cylinder, Placement, Plane, PlateWithHole, ShapeError, Side, Sphere, Torus,
+    non_negative_finite, positive_finite,
 };
 
 /// A triangle mesh of a tool surface: vertex positions \[mm\] and
@@ -70,8 +71,51 @@ fn check_segments(shape: &'static str, segments: usize) -> Result<usize, ShapeEr
 
 /// Divisions of a straight profile piece of `length` so that its pieces
 /// are no longer than `step` (at least one).
-fn divisions(length: f64, step: f64) -> usize {
+pub(crate) fn divisions(length: f64, step: f64) -> usize {
     ((length / step).ceil() as usize).max(1)
+}
+
+/// The profile `(w, z)` of a plate's working surface across the edge of
+/// its opening, `w` measured outwards from the opening's axis (a round
+/// plate) or edge (a polygonal one), free side on the left: the wall at
+/// `w = r_o` from `z = −r_f − wall_length` up to `z = −r_f` in `wall.1`
+/// pieces (none without a wall), the fillet of radius `r_f` about
+/// `(r_o + r_f, −r_f)` from angle π to π/2 in `arc` pieces (its ends
+/// exact), and the face `z = 0` out to `w = r_o + r_f + face.0` in `face.1`
+/// pieces. `radii = (r_o, r_f)`.
+pub(crate) fn plate_profile(
+    radii: (f64, f64),
+    wall: (f64, usize),
+    arc: usize,
+    face: (f64, usize),
+) -> Vec<Vector2<f64>> {
+    let (ro, rf) = radii;
+    let mut profile = Vec::new();
+    if wall.0 > 0.0 {
+        let n = wall.1;
+        for k in 0..n {
+            profile.push(Vector2::new(ro, -rf - wall.0 * (n - k) as f64 / n as f64));
+        }
+    }
+    for k in 0..=arc {
+        let a = if arc == 0 {
+            PI
+        } else {
+            PI - FRAC_PI_2 * k as f64 / arc as f64
+        };
+        profile.push(if k == arc {
+            Vector2::new(ro + rf, 0.0)
+        } else if k == 0 {
+            Vector2::new(ro, -rf)
+        } else {
+            Vector2::new(ro + rf + rf * a.cos(), -rf + rf * a.sin())
+        });
+    }
+    let n = face.1;
+    for k in 1..=n {
+        profile.push(Vector2::new(ro + rf + face.0 * k as f64 / n as f64, 0.0));
+    }
+    profile
 }
 
 /// Revolves the meridian profile `(ρ, z)` (free side on its left; a point
@@ -295,50 +339,17 @@ impl PlateWithHole {
                 ),
             });
         }
-        if !(wall_length.is_finite() && wall_length >= 0.0) {
-            return Err(ShapeError::Parameter {
-                shape: "plate with hole tessellation",
-                parameter: "wall_length",
-                value: wall_length,
-                expected: "a finite length >= 0 [mm]".into(),
-            });
-        }
+        let wall_length =
+            non_negative_finite("plate with hole tessellation", "wall_length", wall_length)?;
         let segments = check_segments("plate with hole tessellation", segments)?;
         let step = TAU * ro / segments as f64;
-        // Free side on the left: up the wall, over the fillet, out along the
-        // face.
-        let mut profile = Vec::new();
-        if wall_length > 0.0 {
-            let n = divisions(wall_length, step);
-            for k in 0..n {
-                profile.push(Vector2::new(
-                    ro,
-                    -rf - wall_length * (n - k) as f64 / n as f64,
-                ));
-            }
-        }
-        let arc = if rf > 0.0 { segments.div_ceil(4) } else { 0 };
-        for k in 0..=arc {
-            // From angle π (the wall's top) to π/2 (the face's start) about
-            // the fillet centre (R_o + r_f, −r_f).
-            let a = if arc == 0 {
-                PI
-            } else {
-                PI - FRAC_PI_2 * k as f64 / arc as f64
-            };
-            profile.push(if k == arc {
-                Vector2::new(ro + rf, 0.0)
-            } else if k == 0 {
-                Vector2::new(ro, -rf)
-            } else {
-                Vector2::new(ro + rf + rf * a.cos(), -rf + rf * a.sin())
-            });
-        }
         let face = outer_radius - ro - rf;
-        let n = divisions(face, step);
-        for k in 1..=n {
-            profile.push(Vector2::new(ro + rf + face * k as f64 / n as f64, 0.0));
-        }
+        let profile = plate_profile(
+            (ro, rf),
+            (wall_length, divisions(wall_length, step)),
+            if rf > 0.0 { segments.div_ceil(4) } else { 0 },
+            (face, divisions(face, step)),
+        );
         Ok(revolve_profile(&profile, false, segments))
     }
 }

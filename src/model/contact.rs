@@ -97,14 +97,6 @@ pub struct NodeContact {
     pub slip: f64,
 }
 
-fn status_code(status: ContactStatus) -> u8 {
-    match status {
-        ContactStatus::Open => 0,
-        ContactStatus::Stick => 1,
-        ContactStatus::Slip => 2,
-    }
-}
-
 /// Settings of one ply–tool contact.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactOptions {
@@ -379,7 +371,7 @@ impl Term for ToolContact {
             tool_force += coupled.residual[3];
             potential += 0.5 * r.normal_force * r.normal_force / self.penalties[i];
             let out = &mut self.outputs[i];
-            out.status = status_code(r.status);
+            out.status = r.status.code();
             out.normal_force = r.normal_force;
             out.friction_force = r.tangential_force.norm();
             out.gap = r.gap;
@@ -584,7 +576,7 @@ impl Term for ToolContact {
                                 fi[..3].copy_from_slice(residual.as_slice());
                                 fi[3] = 0.0;
                                 sum -= direction.dot(&residual);
-                                o.status = status_code(r.status);
+                                o.status = r.status.code();
                                 o.normal_force = r.normal_force;
                                 o.friction_force = r.tangential_force.norm();
                                 o.gap = r.gap;

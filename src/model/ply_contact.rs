@@ -26,7 +26,7 @@ use super::term::{Masses, State, Stencils, Term, TermEnergy, TermFailure};
 use crate::contact::SurfaceNormal;
 use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
 use crate::contact::ply_pair::{
-    CandidateLists, closest_candidate, signed_distance, triangle_boxes,
+    CandidateLists, closest_candidate, side_of, signed_distance, triangle_boxes,
 };
 
 /// Nodes per task of the parallel node loops.
@@ -248,12 +248,7 @@ impl PlyContact {
     }
 
     fn failure(&self, node: usize, reason: String) -> TermFailure {
-        TermFailure {
-            term: self.name.clone(),
-            what: "node",
-            index: node,
-            reason,
-        }
+        failure(&self.name, node, reason)
     }
 
     /// Current positions of both plies from `u`.
@@ -286,7 +281,7 @@ impl PlyContact {
                 &self.plies[other].triangles,
             );
         }
-        self.anchors = self.positions.clone();
+        self.anchors.clone_from(&self.positions);
     }
 }
 
@@ -411,33 +406,31 @@ impl Term for PlyContact {
         for k in 0..2 {
             let other = 1 - k;
             let (surface, triangles) = (&self.positions[other], &self.plies[other].triangles);
-            let mut boxes = std::mem::take(&mut self.passes[k].boxes);
-            triangle_boxes(surface, triangles, &mut boxes);
-            self.passes[k].boxes = boxes;
-            for i in 0..self.plies[k].nodes.len() {
-                let x = &self.positions[k][i];
-                let pass = &self.passes[k];
+            let pass = &mut self.passes[k];
+            triangle_boxes(surface, triangles, &mut pass.boxes);
+            for (i, x) in self.positions[k].iter().enumerate() {
                 let Some((_, point, normal)) =
                     closest_candidate(x, pass.lists.of(i), surface, triangles, &pass.boxes, None)
                 else {
                     continue;
                 };
-                let along = normal.dot(&(x - point.point));
-                if (x - point.point).norm() < 0.5 * self.offset {
-                    return Err(self.failure(
+                let distance = (x - point.point).norm();
+                if distance < 0.5 * self.offset {
+                    return Err(failure(
+                        &self.name,
                         self.plies[k].nodes[i],
                         format!(
                             "ply \"{}\" starts {:.4} mm from the mid-surface of ply \"{}\", less than half the contact offset {} mm (the sum of the half thicknesses): the plies overlap; stack them {} mm apart",
                             self.plies[k].name,
-                            (x - point.point).norm(),
+                            distance,
                             self.plies[other].name,
                             self.offset,
                             self.offset
                         ),
                     ));
                 }
-                if along.abs() >= crate::contact::ply_pair::MIN_FACING * (x - point.point).norm() {
-                    self.passes[k].sides[i] = along.signum();
+                if let Some(side) = side_of(x, &point, &normal) {
+                    pass.sides[i] = side;
                 }
             }
         }
@@ -496,13 +489,10 @@ impl Term for PlyContact {
                             closest_candidate(x, lists.of(i), surface, triangles, boxes, hint);
                         let mut contact: Option<(usize, [f64; 3], SurfaceNormal)> = None;
                         if let Some((t, point, normal)) = found {
-                            if *side == 0.0 {
-                                let along = normal.dot(&(x - point.point));
-                                let facing =
-                                    crate::contact::ply_pair::MIN_FACING * (x - point.point).norm();
-                                if along.abs() >= facing && along != 0.0 {
-                                    *side = along.signum();
-                                }
+                            if *side == 0.0
+                                && let Some(first) = side_of(x, &point, &normal)
+                            {
+                                *side = first;
                             }
                             if *side != 0.0
                                 && let Some(p) = signed_distance(x, &point, &normal, *side)
@@ -511,39 +501,21 @@ impl Term for PlyContact {
                                 contact = Some((t, point.weights, p));
                             }
                         }
-                        // A pair closes only where the node reaches the
-                        // other ply within this increment (its penetration
-                        // at most twice its relative motion): a node found
-                        // already deep (beside a free edge that turned to
-                        // face it, or across a fold) would start with spring
-                        // energy that no work put in.
-                        if let Some((t, w, p)) = &contact
-                            && s.status == ContactStatus::Open
-                            && s.spring == Vector3::zeros()
-                        {
-                            let tri = &triangles[*t];
-                            let under = |xs: &[Vector3<f64>]| {
-                                w[0] * xs[tri[0]] + w[1] * xs[tri[1]] + w[2] * xs[tri[2]]
-                            };
-                            let step = ((x - under(surface))
-                                - (slaves_prev[i] - under(surface_prev)))
-                            .norm();
-                            if p.distance - offset < -(2.0 * step + ENTRY_TOLERANCE) {
-                                contact = None;
-                            }
-                        }
-                        if contact.is_none()
-                            && s.status == ContactStatus::Open
-                            && s.spring == Vector3::zeros()
-                        {
+                        let fresh = s.status == ContactStatus::Open && s.spring == Vector3::zeros();
+                        let open = |hit: &mut Hit, o: &mut PlyNodeContact| {
                             *hit = NO_HIT;
                             o.status = 0;
                             o.normal_force = 0.0;
                             o.gap = f64::INFINITY;
+                        };
+                        if fresh && contact.is_none() {
+                            open(hit, o);
                             continue;
                         }
                         // Position relative to the material point under the
-                        // node, now and at the last increment (same weights).
+                        // node, now and at the last increment (same weights:
+                        // this contact's, or the last hit's while a spring is
+                        // released).
                         let (weights, point) = match &contact {
                             Some((t, w, p)) => (Some((*t, *w)), Some(*p)),
                             None => (hit_weights(hit), None),
@@ -558,8 +530,21 @@ impl Term for PlyContact {
                             }
                             None => (*x, slaves_prev[i]),
                         };
-                        s.previous_position = relative_prev;
                         let motion = relative - relative_prev;
+                        // A pair closes only where the node reaches the
+                        // other ply within this increment (its penetration
+                        // at most twice its relative motion): a node found
+                        // already deep (beside a free edge that turned to
+                        // face it, or across a fold) would start with spring
+                        // energy that no work put in.
+                        if fresh
+                            && let Some(p) = &point
+                            && p.distance - offset < -(2.0 * motion.norm() + ENTRY_TOLERANCE)
+                        {
+                            open(hit, o);
+                            continue;
+                        }
+                        s.previous_position = relative_prev;
                         let r = match springs[i].update_trusted(s, &relative, point.as_ref()) {
                             Ok(r) => r,
                             Err(_) => return Some(i),
@@ -582,11 +567,7 @@ impl Term for PlyContact {
                             },
                             None => NO_HIT,
                         };
-                        o.status = match r.status {
-                            ContactStatus::Open => 0,
-                            ContactStatus::Stick => 1,
-                            ContactStatus::Slip => 2,
-                        };
+                        o.status = r.status.code();
                         o.normal_force = r.normal_force;
                         o.gap = r.gap;
                     }
@@ -678,6 +659,16 @@ impl Term for PlyContact {
             }
         }
         Ok(energy)
+    }
+}
+
+/// A failure of the term `term` at model node `node`.
+fn failure(term: &str, node: usize, reason: String) -> TermFailure {
+    TermFailure {
+        term: term.to_string(),
+        what: "node",
+        index: node,
+        reason,
     }
 }
 

@@ -56,6 +56,17 @@ pub enum ContactStatus {
     Slip,
 }
 
+impl ContactStatus {
+    /// The code the outputs carry: 0 open, 1 stick, 2 slip.
+    pub fn code(self) -> u8 {
+        match self {
+            ContactStatus::Open => 0,
+            ContactStatus::Stick => 1,
+            ContactStatus::Slip => 2,
+        }
+    }
+}
+
 /// Bad settings or inputs of a contact kernel. Never replaced by NaN.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum ContactError {
