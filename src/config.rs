@@ -65,6 +65,17 @@ impl fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
+/// A number for messages, short at any magnitude: `{}` (the shortest
+/// round-trip decimal) between 1e-4 and 1e12, `{:e}` outside (so `1e300`,
+/// not 301 digits); `0`, `NaN`, `inf` as Rust writes them.
+pub fn readable(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e12).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Deserialises `text` (named `source` in messages); unknown and missing
 /// keys are reported by the parser with line and column.
 ///
@@ -120,7 +131,7 @@ impl TomlChecker<'_> {
         if x.is_finite() && ok(x) {
             Ok(x)
         } else {
-            Err(self.invalid(self.line_of(v), key, format!("{x}"), expected))
+            Err(self.invalid(self.line_of(v), key, readable(x), expected))
         }
     }
 
@@ -181,6 +192,25 @@ impl TomlChecker<'_> {
     }
 }
 
+/// The text of a TOML file read as `bytes`, or an error naming the file
+/// and the line of the first byte that is not UTF-8.
+///
+/// # Errors
+/// [`ConfigError::Syntax`].
+pub fn utf8_text(bytes: Vec<u8>, source: &str) -> Result<String, ConfigError> {
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = valid.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = valid.len() - valid.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) + 1;
+        ConfigError::Syntax {
+            source: source.to_string(),
+            message: format!(
+                "line {line}, byte {column}: not UTF-8 text; expected a TOML file (UTF-8)"
+            ),
+        }
+    })
+}
+
 /// Reads a case file: its text, its name for messages and the folder its
 /// relative paths are taken from.
 ///
@@ -189,10 +219,11 @@ impl TomlChecker<'_> {
 pub fn read_case_file(
     path: &std::path::Path,
 ) -> Result<(String, String, std::path::PathBuf), ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::NotFound {
+    let bytes = std::fs::read(path).map_err(|e| ConfigError::NotFound {
         requested: format!("case file '{}'", path.display()),
         reason: e.to_string(),
     })?;
+    let text = utf8_text(bytes, &path.display().to_string())?;
     let base = path
         .parent()
         .unwrap_or(std::path::Path::new("."))

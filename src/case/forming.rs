@@ -585,7 +585,7 @@ fn shown_list(values: &[f64]) -> String {
         "[{}]",
         values
             .iter()
-            .map(|x| x.to_string())
+            .map(|&x| crate::config::readable(x))
             .collect::<Vec<_>>()
             .join(", ")
     )
@@ -608,6 +608,14 @@ fn vector3(
         ));
     }
     let x = Vector3::new(values[0], values[1], values[2]);
+    if !x.norm().is_finite() {
+        return Err(check.invalid(
+            check.line_of(v),
+            key,
+            shown,
+            "three numbers [x, y, z] whose length is finite",
+        ));
+    }
     if unit {
         let n = x.norm();
         if n.is_nan() || n <= 1e-12 {
@@ -705,6 +713,16 @@ impl FormingCase {
                 None if named_set => Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness),
                 None => None,
             };
+            if let (Some(rho), Some(t)) = (density, &p.thickness)
+                && !rho.is_finite()
+            {
+                return Err(check.invalid(
+                    check.line_of(t),
+                    &key("thickness"),
+                    crate::config::readable(thickness),
+                    "a thickness for which the density (areal mass / thickness) is finite",
+                ));
+            }
             let fibre_angle_deg = match &p.fibre_angle_deg {
                 None => 0.0,
                 Some(a) => check.range(
@@ -1211,7 +1229,7 @@ fn ply_mesh(
                         return Err(check.invalid(
                             check.line_of(s),
                             &key("size"),
-                            format!("{v:?}"),
+                            shown_list(v),
                             "two lengths > 0 mm [x, y]",
                         ));
                     }
@@ -1745,7 +1763,17 @@ fn tool_spec(
                 )?,
                 None => {
                     let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
-                    mass * g.dot(&direction)
+                    let weight = mass * g.dot(&direction);
+                    if !weight.is_finite() {
+                        let m = t.mass.as_ref().expect("the mass is given");
+                        return Err(check.invalid(
+                            check.line_of(m),
+                            &key("mass"),
+                            crate::config::readable(*m.get_ref()),
+                            "a mass whose weight (mass × gravity) is finite",
+                        ));
+                    }
+                    weight
                 }
             };
             ToolMotion::Floating {

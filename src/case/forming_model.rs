@@ -14,8 +14,8 @@ use crate::contact::{
 };
 use crate::element::BendingStiffness;
 use crate::material::{FibreFrame, MembraneMaterial, Sym2};
-use crate::mesh::Mesh;
 use crate::mesh::generate::{OatSpecimen, oat_specimen};
+use crate::mesh::{Mesh, MeshError};
 use crate::model::{
     BendingTerm, ContactOptions, DeadLoad, MembraneModel, MembraneOptions, MembraneTerm, Model,
     PlyContact, PlyContactOptions, PlySurface, RigidBodyMass, ToolContact,
@@ -227,8 +227,9 @@ impl FormingModel {
 /// The mesh of a ply, with its fibres set.
 fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
     let ply = &case.plies[p];
-    let context =
-        |e: &dyn std::fmt::Display| format!("{}: ply \"{}\": mesh: {e}", case.source, ply.name);
+    let context = |e: &dyn std::fmt::Display| {
+        format!("{}: ply \"{}\": [ply.mesh] {e}", case.source, ply.name)
+    };
     let angle = ply.fibre_angle_deg.to_radians();
     let in_plane = Vector3::new(angle.cos(), angle.sin(), 0.0);
     let mut mesh = match &ply.mesh {
@@ -252,7 +253,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                 resolution: *resolution,
                 pattern: *pattern,
             })
-            .map_err(|e| context(&e))?
+            .map_err(|e| context(&generator_key(e)))?
             .mesh;
             let shift = centre - Vector3::new(0.5 * size[0], 0.5 * size[1], 0.0);
             for x in &mut mesh.nodes {
@@ -274,10 +275,10 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                     ));
                 }
             }
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| context(&format!("file = \"{}\": {e}", path.display())))?;
             if mesh.fibres.is_empty() {
                 mesh.set_fibres_from_global(in_plane)
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| context(&e))?;
             }
             mesh
         }
@@ -323,6 +324,32 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
     }
     mesh.check().map_err(|e| context(&e))?;
     Ok(mesh)
+}
+
+/// A generator error with the parameter spelled as the `[ply.mesh]` key
+/// (`size`, `cells`) rather than as the OAT case's.
+fn generator_key(e: MeshError) -> MeshError {
+    match e {
+        MeshError::InvalidSpec {
+            parameter: "width" | "length",
+            value,
+            expected,
+        } => MeshError::InvalidSpec {
+            parameter: "size",
+            value,
+            expected,
+        },
+        MeshError::InvalidSpec {
+            parameter: "nx, ny",
+            value,
+            expected,
+        } => MeshError::InvalidSpec {
+            parameter: "cells",
+            value: format!("[{value}]"),
+            expected,
+        },
+        other => other,
+    }
 }
 
 /// `Σ A0/3` per node of a mesh [mm²].

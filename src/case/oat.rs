@@ -430,7 +430,18 @@ impl OatCase {
                     resolution: *resolution,
                     pattern: *pattern,
                 })
-                .map_err(|e| format!("{}: [mesh]: {e}", self.source))?;
+                .map_err(|e| {
+                    // The generator names its parameter by its key; say
+                    // which table of the case file holds it.
+                    let table = match &e {
+                        crate::mesh::MeshError::InvalidSpec {
+                            parameter: "width" | "length" | "bias_angle_deg",
+                            ..
+                        } => "specimen",
+                        _ => "mesh",
+                    };
+                    format!("{}: [{table}] {e}", self.source)
+                })?;
                 (
                     generated.mesh,
                     Some(generated.edge_deviation_deg),
@@ -454,7 +465,7 @@ impl OatCase {
                         ));
                     }
                 }
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| format!("{}: mesh.file = \"{}\": {e}", self.source, path.display()))?;
                 (
                     mesh,
                     None,
@@ -463,13 +474,25 @@ impl OatCase {
                 )
             }
         };
+        let in_case = |e: &dyn std::fmt::Display| format!("{}: {e}", self.source);
         if mesh.fibres.is_empty() {
             mesh.set_fibres_from_global(self.roving_direction())
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| {
+                    format!(
+                        "{}: specimen.bias_angle_deg = {}: {e}",
+                        self.source,
+                        crate::config::readable(self.bias_angle_deg)
+                    )
+                })?;
         }
-        mesh.check().map_err(|e| e.to_string())?;
-        let fixed_nodes = mesh.node_set(&fixed).map_err(|e| e.to_string())?.to_vec();
-        let moving_nodes = mesh.node_set(&moving).map_err(|e| e.to_string())?.to_vec();
+        mesh.check().map_err(|e| in_case(&e))?;
+        let clamp = |key: &str, name: &str| {
+            mesh.node_set(name)
+                .map(<[usize]>::to_vec)
+                .map_err(|e| format!("{}: mesh.{key} = \"{name}\": {e}", self.source))
+        };
+        let fixed_nodes = clamp("fixed_clamp_set", &fixed)?;
+        let moving_nodes = clamp("moving_clamp_set", &moving)?;
         let dirichlet = oat_clamps(
             mesh.nodes.len(),
             &fixed_nodes,

@@ -14,6 +14,7 @@ use std::io::{BufRead, Write};
 use serde::Deserialize;
 use serde_json::{Value, json};
 
+use crate::config::readable;
 use crate::material::{FibreFrame, Invariants, Material, MembraneMaterial, Sym2, Tangent};
 
 /// Relative asymmetry `|C12 − C21| / max|C_ij|` above which an input `C` is
@@ -70,7 +71,9 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
     let scale = c11.abs().max(c22.abs()).max(c12.abs()).max(c21.abs());
     if (c12 - c21).abs() > SYMMETRY_TOLERANCE * scale {
         return Err(format!(
-            "C is not symmetric: C12 = {c12}, C21 = {c21} (expected equal to a relative {SYMMETRY_TOLERANCE:e})"
+            "C is not symmetric: C12 = {}, C21 = {} (expected equal to a relative {SYMMETRY_TOLERANCE:e})",
+            readable(c12),
+            readable(c21)
         ));
     }
     if !input.fiber_angle_deg.is_finite() {
@@ -83,10 +86,36 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
         .stress_tangent(&c, &frame)
         .map_err(|e| e.to_string())?;
     let s = state.stress;
+    let tensor = tangent_tensor(&tangent);
+    let outputs = [
+        state.energy,
+        s[0],
+        s[1],
+        s[2],
+        invariants.i4,
+        invariants.i6,
+        invariants.i8,
+        invariants.i10(),
+        invariants.i11,
+    ];
+    if outputs
+        .iter()
+        .chain(tensor.as_flattened().as_flattened().as_flattened())
+        .any(|v| !v.is_finite())
+    {
+        return Err(format!(
+            "the law's energy, stress or tangent overflows at C = [[{}, {}], [{}, {}]] \
+             (expected a C whose result is finite)",
+            readable(c11),
+            readable(c12),
+            readable(c21),
+            readable(c22)
+        ));
+    }
     Ok(json!({
         "W": state.energy,
         "S": [[s[0], s[2]], [s[2], s[1]]],
-        "tangent": tangent_tensor(&tangent),
+        "tangent": tensor,
         "invariants": {
             "I4": invariants.i4,
             "I6": invariants.i6,
@@ -99,6 +128,8 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
 
 /// Runs `eval` over every line of `input`, writing results to `output` and
 /// one message per bad line to `errors` (`<source>:<line>: <message>`).
+/// Lines are read as bytes: a line that is not UTF-8 is answered with an
+/// error and the later lines are still evaluated.
 ///
 /// # Errors
 /// Only I/O errors of the streams themselves.
@@ -110,13 +141,24 @@ pub fn run(
     source: &str,
 ) -> std::io::Result<EvalSummary> {
     let mut summary = EvalSummary::default();
-    for (index, line) in input.lines().enumerate() {
-        let number = index + 1;
-        let line = line?;
-        if line.trim().is_empty() {
-            continue;
+    let mut input = input;
+    let mut bytes = Vec::new();
+    let mut number = 0;
+    loop {
+        bytes.clear();
+        if input.read_until(b'\n', &mut bytes)? == 0 {
+            break;
         }
-        match eval_line(material, &line) {
+        number += 1;
+        let result = match std::str::from_utf8(&bytes) {
+            Ok(line) if line.trim().is_empty() => continue,
+            Ok(line) => eval_line(material, line),
+            Err(e) => Err(format!(
+                "not UTF-8 text at byte {} of the line (expected a JSON line)",
+                e.valid_up_to() + 1
+            )),
+        };
+        match result {
             Ok(value) => {
                 summary.answered += 1;
                 writeln!(output, "{value}")?;

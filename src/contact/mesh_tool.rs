@@ -35,6 +35,7 @@ use parry3d_f64::shape::{TriMesh, TriMeshFlags, TrianglePointLocation};
 
 use super::tessellate::Tessellation;
 use super::{RigidSurface, SurfacePoint};
+use crate::config::readable;
 use crate::mesh::DEGENERATE_AREA;
 
 /// Distance from an edge or a vertex, relative to the diagonal of the
@@ -146,7 +147,10 @@ pub enum MeshToolError {
     },
     /// A triangle of (nearly) zero area.
     #[error(
-        "tool mesh {file}: triangle {triangle} ({a:?}, {b:?}, {c:?}) is degenerate: area {area:e} mm², expected > {DEGENERATE_AREA:e} × (longest edge)²"
+        "tool mesh {file}: triangle {triangle} {}, {}, {} is degenerate: area {area:e} mm², expected > {DEGENERATE_AREA:e} × (longest edge)²",
+        point(.a),
+        point(.b),
+        point(.c)
     )]
     Degenerate {
         /// The path as given.
@@ -164,7 +168,7 @@ pub enum MeshToolError {
     },
     /// `require_closed` and an edge that is not shared by exactly two
     /// consistently oriented triangles.
-    #[error("tool mesh {file} is not closed: the edge ({a:?}) – ({b:?}) is {defect}")]
+    #[error("tool mesh {file} is not closed: the edge {} – {} is {defect}", point(.a), point(.b))]
     NotClosed {
         /// The path as given.
         file: String,
@@ -186,7 +190,7 @@ pub enum MeshToolError {
         volume: f64,
     },
     /// An option out of range.
-    #[error("tool mesh {file}: {option} = {value}: expected {expected}")]
+    #[error("tool mesh {file}: {option} = {}: expected {expected}", readable(*.value))]
     Option {
         /// The path as given.
         file: String,
@@ -254,6 +258,16 @@ fn glam(v: &Vector3<f64>) -> GlamVector {
 
 fn nalgebra(v: GlamVector) -> Vector3<f64> {
     Vector3::new(v.x, v.y, v.z)
+}
+
+/// A point for messages: `(x, y, z)`, each [`readable`].
+fn point(p: &[f64; 3]) -> String {
+    format!(
+        "({}, {}, {})",
+        readable(p[0]),
+        readable(p[1]),
+        readable(p[2])
+    )
 }
 
 fn array(v: &Vector3<f64>) -> [f64; 3] {

@@ -95,14 +95,51 @@ struct SvkRaw {
 
 type Checker<'a> = TomlChecker<'a>;
 
+/// Largest magnitude a parameter may have (moduli and stresses in MPa,
+/// exponents and intensities): 1e12, five million times the modulus of
+/// steel. Beyond it energies and stresses overflow `f64` in ordinary
+/// strains; a larger value is a typing error, not a material.
+pub const PARAMETER_MAX: f64 = 1e12;
+
+/// Smallest magnitude a non-zero parameter may have: 1e-12 (a micro-pascal
+/// in MPa). Below it the law divides by (nearly) zero.
+pub const PARAMETER_MIN: f64 = 1e-12;
+
 /// The validation of each table, on the shared checker.
 trait ParamsChecks {
+    /// The value if `ok` accepts it and it is 0 or of a magnitude in
+    /// [`PARAMETER_MIN`, `PARAMETER_MAX`]; the error names the key, the
+    /// value and which rule it breaks.
+    fn param(
+        &self,
+        v: &Spanned<f64>,
+        key: &str,
+        ok: impl Fn(f64) -> bool,
+        expected: &str,
+    ) -> Result<f64, ParamsError>;
     fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError>;
     fn coupling(&self, raw: Option<&CouplingRaw>) -> Result<Coupling, ParamsError>;
     fn svk(&self, raw: Option<&SvkRaw>) -> Result<OrthotropicSvk, ParamsError>;
 }
 
 impl ParamsChecks for Checker<'_> {
+    fn param(
+        &self,
+        v: &Spanned<f64>,
+        key: &str,
+        ok: impl Fn(f64) -> bool,
+        expected: &str,
+    ) -> Result<f64, ParamsError> {
+        let x = self.range(v, key, ok, expected)?;
+        self.range(
+            v,
+            key,
+            |x| x == 0.0 || (PARAMETER_MIN..=PARAMETER_MAX).contains(&x.abs()),
+            &format!("{expected}, of magnitude within [{PARAMETER_MIN:e}, {PARAMETER_MAX:e}]"),
+        )?;
+        Ok(x)
+    }
+
     fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError> {
         let raw = raw.ok_or_else(|| {
             self.missing(
@@ -111,7 +148,7 @@ impl ParamsChecks for Checker<'_> {
             )
         })?;
         let key = |k: &str| format!("{table}.{k}");
-        let c_ini = self.range(
+        let c_ini = self.param(
             &raw.c_ini,
             &key("c_ini"),
             |x| x > 0.0,
@@ -120,14 +157,14 @@ impl ParamsChecks for Checker<'_> {
         let transition = match (&raw.s_ini, &raw.c_mid, &raw.delta_s_mid) {
             (None, None, None) => None,
             (Some(s), Some(c), Some(d)) => Some(Transition {
-                s_ini: self.range(
+                s_ini: self.param(
                     s,
                     &key("s_ini"),
                     |x| x > 0.0,
                     "an initial stress limit > 0 MPa",
                 )?,
-                c_mid: self.range(c, &key("c_mid"), |x| x >= 0.0, "a middle modulus ≥ 0 MPa")?,
-                delta_s_mid: self.range(
+                c_mid: self.param(c, &key("c_mid"), |x| x >= 0.0, "a middle modulus ≥ 0 MPa")?,
+                delta_s_mid: self.param(
                     d,
                     &key("delta_s_mid"),
                     |x| x > 0.0,
@@ -158,8 +195,8 @@ impl ParamsChecks for Checker<'_> {
         let lock = match (&raw.c_lock, &raw.i_lock) {
             (None, None) => None,
             (Some(c), Some(i)) => Some(Lock {
-                c_lock: self.range(c, &key("c_lock"), |x| x >= 0.0, "a lock modulus ≥ 0 MPa")?,
-                i_lock: self.range(i, &key("i_lock"), |x| x >= 0.0, "a lock onset ≥ 0")?,
+                c_lock: self.param(c, &key("c_lock"), |x| x >= 0.0, "a lock modulus ≥ 0 MPa")?,
+                i_lock: self.param(i, &key("i_lock"), |x| x >= 0.0, "a lock onset ≥ 0")?,
             }),
             (Some(c), None) => {
                 return Err(self.invalid(
@@ -186,14 +223,14 @@ impl ParamsChecks for Checker<'_> {
             self.missing("[coupling]", "a table k_min, s11, e11 (law \"ud-ncf\")")
         })?;
         Ok(Coupling {
-            k_min: self.range(
+            k_min: self.param(
                 &raw.k_min,
                 "coupling.k_min",
                 |x| (0.0..=1.0).contains(&x),
                 "a value in [0, 1]",
             )?,
-            s11: self.range(&raw.s11, "coupling.s11", |x| x >= 0.0, "an intensity ≥ 0")?,
-            e11: self.range(
+            s11: self.param(&raw.s11, "coupling.s11", |x| x >= 0.0, "an intensity ≥ 0")?,
+            e11: self.param(
                 &raw.e11,
                 "coupling.e11",
                 |x| x >= 1.0,
@@ -209,15 +246,18 @@ impl ParamsChecks for Checker<'_> {
                 "a table e1, e2, nu12, g12 (law \"orthotropic-svk\")",
             )
         })?;
-        let e1 = self.range(&raw.e1, "svk.e1", |x| x > 0.0, "a modulus > 0 MPa")?;
-        let e2 = self.range(&raw.e2, "svk.e2", |x| x > 0.0, "a modulus > 0 MPa")?;
-        let g12 = self.range(&raw.g12, "svk.g12", |x| x > 0.0, "a shear modulus > 0 MPa")?;
+        let e1 = self.param(&raw.e1, "svk.e1", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let e2 = self.param(&raw.e2, "svk.e2", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let g12 = self.param(&raw.g12, "svk.g12", |x| x > 0.0, "a shear modulus > 0 MPa")?;
         let bound = (e1 / e2).sqrt();
-        let nu12 = self.range(
+        let nu12 = self.param(
             &raw.nu12,
             "svk.nu12",
             |x| x * x < e1 / e2,
-            &format!("|nu12| < sqrt(e1/e2) = {bound} (positive-definite stiffness)"),
+            &format!(
+                "|nu12| < sqrt(e1/e2) = {} (positive-definite stiffness)",
+                crate::config::readable(bound)
+            ),
         )?;
         Ok(OrthotropicSvk { e1, e2, nu12, g12 })
     }
@@ -317,7 +357,7 @@ impl MaterialSpec {
             return Ok(spec);
         }
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|e| ParamsError::NotFound {
+        let bytes = std::fs::read(path).map_err(|e| ParamsError::NotFound {
             requested: format!("material parameters '{name_or_path}'"),
             reason: format!(
                 "not a named set ({}) and not a readable file ({e})",
@@ -328,6 +368,8 @@ impl MaterialSpec {
                     .join(", ")
             ),
         })?;
-        Self::from_toml_str(&text, &path.display().to_string())
+        let source = path.display().to_string();
+        let text = crate::config::utf8_text(bytes, &source)?;
+        Self::from_toml_str(&text, &source)
     }
 }

@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 use nalgebra::Vector3;
 
 use super::{Mesh, MeshError};
+use crate::config::readable;
 
 /// Largest number of triangles the generator accepts.
 pub const MAX_TRIANGLES: usize = 5_000_000;
@@ -129,10 +130,20 @@ pub fn oat_specimen(spec: &OatSpecimen) -> Result<GeneratedMesh, MeshError> {
         .and_then(|c| c.checked_mul(per_cell))
         .filter(|&t| t <= MAX_TRIANGLES);
     if triangles.is_none() {
-        return Err(MeshError::InvalidSpec {
-            parameter: "resolution",
-            value: format!("{nx} x {ny} cells"),
-            expected: format!("at most {MAX_TRIANGLES} triangles ({per_cell} per cell)"),
+        return Err(match spec.resolution {
+            GridResolution::Counts { .. } => MeshError::InvalidSpec {
+                parameter: "nx, ny",
+                value: format!("{nx}, {ny}"),
+                expected: format!("at most {MAX_TRIANGLES} triangles ({per_cell} per cell)"),
+            },
+            GridResolution::ElementSize(h) => MeshError::InvalidSpec {
+                parameter: "element_size",
+                value: readable(h),
+                expected: format!(
+                    "a size giving at most {MAX_TRIANGLES} triangles (this one gives {nx} x {ny} \
+                     cells, {per_cell} triangles each)"
+                ),
+            },
         });
     }
     let mesh = build(spec, nx, ny, a0);
@@ -148,7 +159,7 @@ pub fn oat_specimen(spec: &OatSpecimen) -> Result<GeneratedMesh, MeshError> {
 fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
     let bad = |parameter: &'static str, value: f64, expected: &str| MeshError::InvalidSpec {
         parameter,
-        value: value.to_string(),
+        value: readable(value),
         expected: expected.to_string(),
     };
     if !(spec.width.is_finite() && spec.width > 0.0) {
@@ -168,14 +179,14 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
     match spec.resolution {
         GridResolution::ElementSize(h) => {
             if !(h.is_finite() && h > 0.0) {
-                return Err(bad("element size", h, "a finite size > 0 mm"));
+                return Err(bad("element_size", h, "a finite size > 0 mm"));
             }
         }
         GridResolution::Counts { nx, ny } => {
             if nx == 0 || ny == 0 {
                 return Err(MeshError::InvalidSpec {
-                    parameter: "resolution",
-                    value: format!("nx = {nx}, ny = {ny}"),
+                    parameter: "nx, ny",
+                    value: format!("{nx}, {ny}"),
                     expected: "at least one cell in each direction".to_string(),
                 });
             }
@@ -184,19 +195,23 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
     if spec.pattern == GridPattern::BothDiagonals && (theta == 0.0 || theta.abs() == 90.0) {
         return Err(MeshError::InvalidSpec {
             parameter: "pattern",
-            value: format!("BothDiagonals at {theta}°"),
-            expected: "RovingDiagonal at 0° and ±90° (its cell sides already follow the \
-                       rovings and the stitching; the diagonals would not)"
-                .to_string(),
+            value: "\"both-diagonals\"".to_string(),
+            expected: format!(
+                "\"roving-diagonal\" at bias angle {}° (at 0° and ±90° its cell sides \
+                 already follow the rovings and the stitching; the diagonals would not)",
+                readable(theta)
+            ),
         });
     }
     if spec.pattern == GridPattern::Mirrored && !(theta == 0.0 || theta.abs() == 90.0) {
         return Err(MeshError::InvalidSpec {
             parameter: "pattern",
-            value: format!("Mirrored at {theta}°"),
-            expected: "0° or ±90° (elsewhere only the roving diagonal keeps an edge of every \
-                       triangle along the rovings)"
-                .to_string(),
+            value: "\"mirrored\"".to_string(),
+            expected: format!(
+                "a bias angle of 0° or ±90°, not {}° (elsewhere only \"roving-diagonal\" \
+                 keeps an edge of every triangle along the rovings)",
+                readable(theta)
+            ),
         });
     }
     Ok(())
@@ -204,8 +219,8 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
 
 fn too_many(h: f64) -> MeshError {
     MeshError::InvalidSpec {
-        parameter: "element size",
-        value: h.to_string(),
+        parameter: "element_size",
+        value: readable(h),
         expected: format!("a size giving at most {MAX_TRIANGLES} triangles"),
     }
 }
@@ -245,10 +260,11 @@ fn choose_counts(w: f64, l: f64, theta: f64, h: f64) -> Result<(usize, usize), M
         // Cells with dx/dy = tan|θ| get absurdly slender as θ → 0 or ±90°.
         return Err(MeshError::InvalidSpec {
             parameter: "bias_angle_deg",
-            value: theta.to_string(),
+            value: readable(theta),
             expected: format!(
                 "0 or ±90 exactly, or an angle whose aligned grid (dx/dy = tan|θ|) \
-                 fits in {MAX_TRIANGLES} triangles at element size {h} mm"
+                 fits in {MAX_TRIANGLES} triangles at element size {} mm",
+                readable(h)
             ),
         });
     }

@@ -471,7 +471,10 @@ impl<'a> Parser<'a> {
                 return Err(MeshError::Syntax {
                     file,
                     line: *line,
-                    found: format!("element {} with nodes {:?}", self.element_labels[e], ids),
+                    found: format!(
+                        "element {} with nodes {}, {}, {}",
+                        self.element_labels[e], ids[0], ids[1], ids[2]
+                    ),
                     expected: "three distinct node ids".to_string(),
                 });
             }
@@ -505,7 +508,10 @@ impl<'a> Parser<'a> {
                             Some(&(i, _)) => add.push(i),
                             None => return Err(unknown(*kind, id.to_string(), *line)),
                         }
-                        id += step;
+                        match id.checked_add(*step) {
+                            Some(next) => id = next,
+                            None => break,
+                        }
                     }
                 }
                 Member::Set(name, line) => {

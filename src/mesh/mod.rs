@@ -213,9 +213,10 @@ pub enum MeshError {
         what: String,
     },
     /// An OAT specimen specification that cannot be meshed.
-    #[error("OAT specimen generator: {parameter} = {value} is invalid; expected {expected}")]
+    #[error("{parameter} = {value}: expected {expected} (specimen generator)")]
     InvalidSpec {
-        /// The parameter (`width`, `length`, `bias_angle_deg`, ...).
+        /// The parameter, spelled as its case-file key (`width`, `length`,
+        /// `bias_angle_deg`, `element_size`, `nx, ny`, `pattern`).
         parameter: &'static str,
         /// The value as given.
         value: String,
@@ -480,7 +481,6 @@ fn lookup_set<'a>(sets: &'a BTreeMap<String, Vec<usize>>, name: &str) -> Option<
     }
 }
 
-/// Sorts and deduplicates every set of a map (readers' final step).
 /// Reads a mesh file as text (lossy: a binary file keeps its ASCII header,
 /// so a reader can reject it by name rather than as invalid UTF-8).
 pub(crate) fn read_text(path: &std::path::Path) -> Result<(String, String), MeshError> {
@@ -492,6 +492,7 @@ pub(crate) fn read_text(path: &std::path::Path) -> Result<(String, String), Mesh
     Ok((String::from_utf8_lossy(&bytes).into_owned(), file))
 }
 
+/// Sorts and deduplicates every set of a map (readers' final step).
 pub(crate) fn normalise_sets(sets: &mut BTreeMap<String, Vec<usize>>) {
     for members in sets.values_mut() {
         members.sort_unstable();

@@ -238,7 +238,12 @@ pub fn parse_msh(text: &str, source: &str) -> Result<Mesh, MeshError> {
                         }
                         let mut tags = Vec::with_capacity(np);
                         for t in &f[skip + 1..skip + 1 + np] {
-                            tags.push(c.int(l, t, "a physical tag")?.abs());
+                            // A negative tag reverses the orientation.
+                            let tag = c.int(l, t, "a physical tag")?;
+                            let Some(tag) = tag.checked_abs() else {
+                                return Err(c.syntax(l, t, "a physical tag"));
+                            };
+                            tags.push(tag);
                         }
                         entity_physicals.insert((dim as i64, tag), tags);
                     }
@@ -251,6 +256,19 @@ pub fn parse_msh(text: &str, source: &str) -> Result<Mesh, MeshError> {
                 let nblocks = c.count(l, f[0], expected)?;
                 let total = c.count(l, f[1], expected)?;
                 let header_line = l;
+                // Each node takes two lines (tag, coordinates): a header
+                // count beyond what the rest of the file can hold is a
+                // corrupt header, not an allocation to attempt.
+                let room = c.lines.len().saturating_sub(c.pos) / 2;
+                if total > room {
+                    return Err(c.syntax(
+                        header_line,
+                        &format!("{total} nodes in the header"),
+                        &format!(
+                            "a node count the file can hold (at most {room} in its remaining lines)"
+                        ),
+                    ));
+                }
                 nodes.reserve(total);
                 for _ in 0..nblocks {
                     let expected = "a node block `entityDim entityTag parametric numNodesInBlock`";

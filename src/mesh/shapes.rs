@@ -11,11 +11,12 @@ use nalgebra::Vector3;
 
 use super::generate::MAX_TRIANGLES;
 use super::{Mesh, MeshError};
+use crate::config::readable;
 
 fn invalid(generator: &str, parameter: &str, value: f64, expected: &str) -> MeshError {
     MeshError::Invalid {
         file: generator.to_string(),
-        what: format!("{parameter} = {value} is invalid; expected {expected}"),
+        what: format!("{parameter} = {}: expected {expected}", readable(value)),
     }
 }
 
