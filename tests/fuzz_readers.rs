@@ -825,3 +825,41 @@ fn tool_mesh_failures_name_the_file() {
     .to_string();
     assert!(e.contains("1e300") || e.contains("inf"), "{e}");
 }
+
+/// Regression: forming-case numbers that are finite one by one but whose
+/// derived values are not — a displacement vector's length, a ply's
+/// density, a floating tool's weight — were accepted as `inf`.
+#[test]
+fn forming_derived_values_that_overflow_are_refused_at_their_key() {
+    let base = repo().join("cases/verification");
+    let read_case = |file: &str| String::from_utf8(read(&base.join(file))).unwrap();
+    let patch = read_case("friction-patch.toml");
+    let holder = read_case("blankholder.toml");
+    for (text, from, to, key) in [
+        (
+            &patch,
+            "displacement = [0.5, 0.0, 0.0]",
+            "displacement = [0.5, -1e308, 1e308]",
+            "displacement = [0.5, -1e308, 1e308]: expected three numbers [x, y, z] whose length is finite",
+        ),
+        (
+            &holder,
+            "thickness = 0.3",
+            "thickness = 5e-324",
+            "thickness = 5e-324: expected a thickness for which the density",
+        ),
+        (
+            &holder,
+            "mass = 1.7 ",
+            "mass = 1e308 ",
+            "mass = 1e308: expected a mass whose weight",
+        ),
+    ] {
+        let bad = text.replacen(from, to, 1);
+        assert_ne!(&bad, text, "{from} not in the verification case");
+        let e = FormingCase::from_toml_str(&bad, "f.toml", &base)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("f.toml:") && e.contains(key), "{e}");
+    }
+}
