@@ -40,7 +40,7 @@ pub const DEFAULT_HISTORY_ROWS: usize = 100;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FormingRaw {
-    title: Option<String>,
+    title: Option<Spanned<String>>,
     ply: Vec<PlyRaw>,
     #[serde(default)]
     tool: Vec<ToolRaw>,
@@ -1117,7 +1117,10 @@ impl FormingCase {
             ),
         };
         Ok(Self {
-            title: raw.title.unwrap_or_else(|| "forming".to_string()),
+            title: match &raw.title {
+                None => "forming".to_string(),
+                Some(t) => check.one_line(t, "title")?,
+            },
             source: source.to_string(),
             plies,
             tools,

@@ -282,9 +282,35 @@ fn choose_counts(w: f64, l: f64, theta: f64, h: f64) -> Result<(usize, usize), M
             best = Some((nx, ny, dev, miss));
         }
     }
-    best.map(|(nx, ny, _, _)| (nx, ny))
-        .ok_or_else(|| too_many(h))
+    let (nx, ny) = best
+        .map(|(nx, ny, _, _)| (nx, ny))
+        .ok_or_else(|| too_many(h))?;
+    // A specimen narrower than an aligned cell still gets one cell across,
+    // and the alignment dx/dy = tan|θ| then shrinks every cell with it:
+    // refuse grids whose cells are far below the requested size rather
+    // than silently meshing with many times the triangles asked for.
+    let cell_area = (w / nx as f64) * (l / ny as f64);
+    if cell_area < MIN_CELL_AREA_FRACTION * h * h {
+        return Err(MeshError::InvalidSpec {
+            parameter: "element size",
+            value: format!("{h}"),
+            expected: format!(
+                "a size the specimen can hold: at {theta}° the aligned grid of a {w} mm wide specimen \
+                 has cells of {:.3e} mm² ({} triangles) instead of about {:.3e} mm²; \
+                 use an element size of at most about {:.3e} mm, or give nx and ny",
+                cell_area,
+                2 * nx * ny,
+                h * h,
+                w * t.sqrt()
+            ),
+        });
+    }
+    Ok((nx, ny))
 }
+
+/// Smallest cell area an `ElementSize` grid may have, as a fraction of the
+/// requested `h²` (a cell half the size in each direction).
+pub const MIN_CELL_AREA_FRACTION: f64 = 0.25;
 
 fn build(spec: &OatSpecimen, nx: usize, ny: usize, a0: Vector3<f64>) -> Mesh {
     let (w, l) = (spec.width, spec.length);
