@@ -65,17 +65,6 @@ impl fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
-/// A number for messages, short at any magnitude: `{}` (the shortest
-/// round-trip decimal) between 1e-4 and 1e12, `{:e}` outside (so `1e300`,
-/// not 301 digits); `0`, `NaN`, `inf` as Rust writes them.
-pub fn readable(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-4..1e12).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
-}
-
 /// Deserialises `text` (named `source` in messages); unknown and missing
 /// keys are reported by the parser with line and column.
 ///
@@ -115,6 +104,26 @@ impl TomlChecker<'_> {
         }
     }
 
+    /// A one-line text (a title: it heads every CSV, PNG and VTU the run
+    /// writes), or an error naming `key` when it holds a line break or
+    /// another control character.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`].
+    pub fn one_line(&self, v: &Spanned<String>, key: &str) -> Result<String, ConfigError> {
+        let text = v.get_ref();
+        if text.chars().any(char::is_control) {
+            Err(self.invalid(
+                self.line_of(v),
+                key,
+                format!("{text:?}"),
+                "one line of text without control characters (it heads every output file)",
+            ))
+        } else {
+            Ok(text.clone())
+        }
+    }
+
     /// The value if it is finite and `ok` accepts it, else an error naming
     /// `key` and `expected`.
     ///
@@ -131,7 +140,7 @@ impl TomlChecker<'_> {
         if x.is_finite() && ok(x) {
             Ok(x)
         } else {
-            Err(self.invalid(self.line_of(v), key, readable(x), expected))
+            Err(self.invalid(self.line_of(v), key, readable_number(x), expected))
         }
     }
 
@@ -229,4 +238,19 @@ pub fn read_case_file(
         .unwrap_or(std::path::Path::new("."))
         .to_path_buf();
     Ok((text, path.display().to_string(), base))
+}
+
+/// A number as a reader wants it in a message: plain between 1e-4 and 1e15
+/// in magnitude (`0.25`, `80`), in exponent form outside (`1e-9`, `1e300`)
+/// rather than hundreds of digits; `nan` and `inf` as TOML spells them.
+pub fn readable_number(x: f64) -> String {
+    if x.is_nan() {
+        "nan".into()
+    } else if x.is_infinite() {
+        if x > 0.0 { "inf".into() } else { "-inf".into() }
+    } else if x == 0.0 || (1e-4..1e15).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }

@@ -7,7 +7,9 @@ use toml::Spanned;
 
 use crate::config::{ConfigError, TomlChecker};
 use crate::solver::NewtonParameters;
-use crate::solver::explicit::{Amplitude, ExplicitParameters, TimeStepControl};
+use crate::solver::explicit::{
+    Amplitude, DEFAULT_MAX_INCREMENTS, ExplicitParameters, TimeStepControl,
+};
 
 /// Areal mass of the paper's fabric [kg/m²] (not in the paper; `docs/parameters.md`), the default for the
 /// named parameter sets.
@@ -20,6 +22,9 @@ pub const KG_PER_M2_IN_T_PER_MM2: f64 = 1.0e-9;
 pub const DEFAULT_CLAMP_SPEED: f64 = 100.0;
 /// Default number of history rows over the stroke of an explicit run.
 pub const DEFAULT_HISTORY_ROWS: f64 = 160.0;
+/// Most history rows `explicit.history_interval` may ask for (each row is
+/// a line of every history CSV and an entry of `summary.json`).
+pub const MAX_HISTORY_ROWS: f64 = 1.0e6;
 
 /// The top-level `solver` key: a method name, or the `[solver]` table of
 /// Newton knobs (which implies the quasi-static method).
@@ -77,6 +82,7 @@ pub(super) struct ExplicitRaw {
     pub(super) energy_balance_warning: Option<Spanned<f64>>,
     pub(super) history_interval: Option<Spanned<f64>>,
     pub(super) threads: Option<Spanned<i64>>,
+    pub(super) max_increments: Option<Spanned<i64>>,
 }
 
 /// Validated explicit settings of a case.
@@ -102,6 +108,8 @@ pub struct ExplicitSettings {
     pub history_interval: f64,
     /// Worker threads (0: all).
     pub threads: usize,
+    /// Most time increments the run may take.
+    pub max_increments: usize,
 }
 
 impl ExplicitSettings {
@@ -133,6 +141,26 @@ impl ExplicitSettings {
             (None, Some(d)) => displacement / positive(d, "explicit.duration", "a duration > 0 s")?,
             (None, None) => DEFAULT_CLAMP_SPEED,
         };
+        // Each value may be finite and the quotient not (1e-308 s for an
+        // 80 mm stroke, 5e-324 mm/s, or a stroke of 5e-324 mm).
+        let duration = displacement / clamp_speed;
+        if !(clamp_speed.is_finite() && duration.is_finite() && duration > 0.0) {
+            let (key, line, value) = match (&raw.duration, &raw.clamp_speed) {
+                (Some(d), _) => ("explicit.duration", check.line_of(d), *d.get_ref()),
+                (None, Some(v)) => ("explicit.clamp_speed", check.line_of(v), *v.get_ref()),
+                (None, None) => ("explicit.clamp_speed", 0, clamp_speed),
+            };
+            return Err(check.invalid(
+                line,
+                key,
+                crate::config::readable_number(value),
+                &format!(
+                    "a value for which the stroke of {} mm takes a finite, positive time \
+                     (duration = stroke / clamp_speed)",
+                    crate::config::readable_number(displacement)
+                ),
+            ));
+        }
         let amplitude = match &raw.amplitude {
             None => Amplitude::SmoothStep,
             Some(a) => check.choice(
@@ -197,9 +225,16 @@ impl ExplicitSettings {
             Some(v) => check.range(
                 v,
                 "explicit.history_interval",
-                |x| x > 0.0 && x <= displacement,
-                &format!("a clamp displacement in (0, {displacement}] mm"),
+                |x| x >= displacement / MAX_HISTORY_ROWS && x <= displacement,
+                &format!(
+                    "a clamp displacement in [{:e}, {displacement}] mm (at most {MAX_HISTORY_ROWS:e} history rows)",
+                    displacement / MAX_HISTORY_ROWS
+                ),
             )?,
+        };
+        let max_increments = match &raw.max_increments {
+            None => DEFAULT_MAX_INCREMENTS,
+            Some(n) => check.count(n, "explicit.max_increments", 1..=1_000_000_000_000)?,
         };
         let threads = match &raw.threads {
             None => 0,
@@ -216,6 +251,7 @@ impl ExplicitSettings {
             energy_balance_warning,
             history_interval,
             threads,
+            max_increments,
         })
     }
 
@@ -230,6 +266,7 @@ impl ExplicitSettings {
             kinetic_energy_warning: self.kinetic_energy_warning,
             energy_balance_warning: self.energy_balance_warning,
             threads: self.threads,
+            max_increments: self.max_increments,
         }
     }
 }

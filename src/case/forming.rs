@@ -40,7 +40,7 @@ pub const DEFAULT_HISTORY_ROWS: usize = 100;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FormingRaw {
-    title: Option<String>,
+    title: Option<Spanned<String>>,
     ply: Vec<PlyRaw>,
     #[serde(default)]
     tool: Vec<ToolRaw>,
@@ -585,7 +585,7 @@ fn shown_list(values: &[f64]) -> String {
         "[{}]",
         values
             .iter()
-            .map(|&x| crate::config::readable(x))
+            .map(|&x| crate::config::readable_number(x))
             .collect::<Vec<_>>()
             .join(", ")
     )
@@ -719,7 +719,7 @@ impl FormingCase {
                 return Err(check.invalid(
                     check.line_of(t),
                     &key("thickness"),
-                    crate::config::readable(thickness),
+                    crate::config::readable_number(thickness),
                     "a thickness for which the density (areal mass / thickness) is finite",
                 ));
             }
@@ -1135,7 +1135,10 @@ impl FormingCase {
             ),
         };
         Ok(Self {
-            title: raw.title.unwrap_or_else(|| "forming".to_string()),
+            title: match &raw.title {
+                None => "forming".to_string(),
+                Some(t) => check.one_line(t, "title")?,
+            },
             source: source.to_string(),
             plies,
             tools,
@@ -1769,7 +1772,7 @@ fn tool_spec(
                         return Err(check.invalid(
                             check.line_of(m),
                             &key("mass"),
-                            crate::config::readable(*m.get_ref()),
+                            crate::config::readable_number(*m.get_ref()),
                             "a mass whose weight (mass × gravity) is finite",
                         ));
                     }

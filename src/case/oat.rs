@@ -28,7 +28,7 @@ pub const DEFAULT_THICKNESS: f64 = 0.3;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CaseRaw {
-    title: Option<String>,
+    title: Option<Spanned<String>>,
     specimen: SpecimenRaw,
     mesh: MeshRaw,
     material: Option<MaterialRaw>,
@@ -285,11 +285,13 @@ impl OatCase {
             Some(t) => positive(&t, "material.thickness")?,
         };
 
+        // A stretch of 2 along the load axis is far beyond a fabric's range
+        // (the paper's OATs end at 80 mm of 300 mm).
         let displacement = check.range(
             &raw.loading.displacement,
             "loading.displacement",
-            |x| x > 0.0,
-            "a clamp displacement > 0 mm",
+            |x| x > 0.0 && x <= length,
+            &format!("a clamp displacement in (0, {length}] mm (at most the free length)"),
         )?;
         let mut output_displacements = match &raw.loading.output_displacements {
             None => vec![],
@@ -369,6 +371,21 @@ impl OatCase {
             }
             (None, None) => None,
         };
+        if let Some(rho) = density
+            && !rho.is_finite()
+        {
+            // A finite areal mass over a thickness of 5e-324 mm.
+            let (key, line) = match material_raw.and_then(|m| m.thickness.as_ref()) {
+                Some(t) => ("material.thickness", check.line_of(t)),
+                None => ("material.thickness", 0),
+            };
+            return Err(check.invalid(
+                line,
+                key,
+                crate::config::readable_number(thickness),
+                "a thickness for which the density (areal mass / thickness) is finite",
+            ));
+        }
         if solver_kind == SolverKind::Explicit && density.is_none() {
             return Err(check.missing(
                 "material.areal_mass",
@@ -376,9 +393,10 @@ impl OatCase {
             ));
         }
         Ok(Self {
-            title: raw
-                .title
-                .unwrap_or_else(|| format!("{bias_angle_deg}° off-axis tension test")),
+            title: match &raw.title {
+                None => format!("{bias_angle_deg}° off-axis tension test"),
+                Some(t) => check.one_line(t, "title")?,
+            },
             source: source.to_string(),
             width,
             length,
@@ -481,7 +499,7 @@ impl OatCase {
                     format!(
                         "{}: specimen.bias_angle_deg = {}: {e}",
                         self.source,
-                        crate::config::readable(self.bias_angle_deg)
+                        crate::config::readable_number(self.bias_angle_deg)
                     )
                 })?;
         }
@@ -493,6 +511,26 @@ impl OatCase {
         };
         let fixed_nodes = clamp("fixed_clamp_set", &fixed)?;
         let moving_nodes = clamp("moving_clamp_set", &moving)?;
+        for (set, nodes, key) in [
+            (&fixed, &fixed_nodes, "mesh.fixed_clamp_set"),
+            (&moving, &moving_nodes, "mesh.moving_clamp_set"),
+        ] {
+            if nodes.is_empty() {
+                return Err(format!(
+                    "{}: {key} = \"{set}\": the node set of {} is empty; expected the nodes of a clamped edge",
+                    self.source, mesh.source
+                ));
+            }
+        }
+        let in_fixed: std::collections::HashSet<usize> = fixed_nodes.iter().copied().collect();
+        if let Some(&shared) = moving_nodes.iter().find(|n| in_fixed.contains(n)) {
+            return Err(format!(
+                "{}: mesh.fixed_clamp_set = \"{fixed}\" and mesh.moving_clamp_set = \"{moving}\": node {} of {} is in both sets; expected two clamps without a common node (one is fixed, the other moves)",
+                self.source,
+                mesh.node_label(shared),
+                mesh.source
+            ));
+        }
         let dirichlet = oat_clamps(
             mesh.nodes.len(),
             &fixed_nodes,

@@ -57,6 +57,40 @@ fn describe(term: &GeneralizedTerm) -> String {
     s
 }
 
+/// Refuses a parameter set whose stress functions, moduli, energies or
+/// coupling are not finite somewhere in the plotted ranges (huge moduli
+/// overflow): the message names the set, the term, the quantity and `x`,
+/// and nothing is written.
+fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
+    let terms = [
+        ("w6", "x = |I6|", &law.w6, SHEAR_RANGE),
+        ("w8", "x = I8 - 1", &law.w8, STITCHING_RANGE),
+        ("w11", "x = 1 - I11", &law.w11, COMPACTION_RANGE),
+    ];
+    for (name, x_name, term, range) in terms {
+        for row in term_rows(term, range) {
+            for (value, quantity) in row[1..].iter().zip(["stress f", "modulus df", "energy W"]) {
+                if !value.is_finite() {
+                    return Err(format!(
+                        "{}: [{name}]: the {quantity} is {value} at {x_name} = {}: the parameters overflow the law within the plotted range {range:?}; expected moduli and stresses that stay finite (nothing written)",
+                        spec.source, row[0]
+                    ));
+                }
+            }
+        }
+    }
+    for i11 in samples(COUPLING_RANGE) {
+        let k = law.coupling.eval(i11);
+        if !(k.k.is_finite() && k.dk.is_finite()) {
+            return Err(format!(
+                "{}: [coupling]: k11 = {}, dk11/dI11 = {} at I11 = {i11}: expected finite values (nothing written)",
+                spec.source, k.k, k.dk
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Writes the curves of a UD-NCF parameter set into `out` and returns the
 /// files written.
 ///
@@ -70,6 +104,7 @@ pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, Str
             spec.source
         ));
     };
+    check_finite(spec, &law)?;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let io = |path: &Path, e: std::io::Error| format!("{}: {e}", path.display());
     let mut written = Vec::new();

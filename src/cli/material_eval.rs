@@ -14,7 +14,7 @@ use std::io::{BufRead, Write};
 use serde::Deserialize;
 use serde_json::{Value, json};
 
-use crate::config::readable;
+use crate::config::readable_number;
 use crate::material::{FibreFrame, Invariants, Material, MembraneMaterial, Sym2, Tangent};
 
 /// Relative asymmetry `|C12 − C21| / max|C_ij|` above which an input `C` is
@@ -72,8 +72,8 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
     if (c12 - c21).abs() > SYMMETRY_TOLERANCE * scale {
         return Err(format!(
             "C is not symmetric: C12 = {}, C21 = {} (expected equal to a relative {SYMMETRY_TOLERANCE:e})",
-            readable(c12),
-            readable(c21)
+            readable_number(c12),
+            readable_number(c21)
         ));
     }
     if !input.fiber_angle_deg.is_finite() {
@@ -106,10 +106,10 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
         return Err(format!(
             "the law's energy, stress or tangent overflows at C = [[{}, {}], [{}, {}]] \
              (expected a C whose result is finite)",
-            readable(c11),
-            readable(c12),
-            readable(c21),
-            readable(c22)
+            readable_number(c11),
+            readable_number(c12),
+            readable_number(c21),
+            readable_number(c22)
         ));
     }
     Ok(json!({

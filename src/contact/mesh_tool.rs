@@ -35,7 +35,7 @@ use parry3d_f64::shape::{TriMesh, TriMeshFlags, TrianglePointLocation};
 
 use super::tessellate::Tessellation;
 use super::{RigidSurface, SurfacePoint};
-use crate::config::readable;
+use crate::config::readable_number;
 use crate::mesh::DEGENERATE_AREA;
 
 /// Distance from an edge or a vertex, relative to the diagonal of the
@@ -190,7 +190,7 @@ pub enum MeshToolError {
         volume: f64,
     },
     /// An option out of range.
-    #[error("tool mesh {file}: {option} = {}: expected {expected}", readable(*.value))]
+    #[error("tool mesh {file}: {option} = {}: expected {expected}", readable_number(*.value))]
     Option {
         /// The path as given.
         file: String,
@@ -260,13 +260,13 @@ fn nalgebra(v: GlamVector) -> Vector3<f64> {
     Vector3::new(v.x, v.y, v.z)
 }
 
-/// A point for messages: `(x, y, z)`, each [`readable`].
+/// A point for messages: `(x, y, z)`, each [`readable_number`].
 fn point(p: &[f64; 3]) -> String {
     format!(
         "({}, {}, {})",
-        readable(p[0]),
-        readable(p[1]),
-        readable(p[2])
+        readable_number(p[0]),
+        readable_number(p[1]),
+        readable_number(p[2])
     )
 }
 

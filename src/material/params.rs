@@ -256,7 +256,7 @@ impl ParamsChecks for Checker<'_> {
             |x| x * x < e1 / e2,
             &format!(
                 "|nu12| < sqrt(e1/e2) = {} (positive-definite stiffness)",
-                crate::config::readable(bound)
+                crate::config::readable_number(bound)
             ),
         )?;
         Ok(OrthotropicSvk { e1, e2, nu12, g12 })

@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use nalgebra::Vector3;
 
 use super::{Mesh, MeshError};
-use crate::config::readable;
+use crate::config::readable_number;
 
 /// Largest number of triangles the generator accepts.
 pub const MAX_TRIANGLES: usize = 5_000_000;
@@ -138,7 +138,7 @@ pub fn oat_specimen(spec: &OatSpecimen) -> Result<GeneratedMesh, MeshError> {
             },
             GridResolution::ElementSize(h) => MeshError::InvalidSpec {
                 parameter: "element_size",
-                value: readable(h),
+                value: readable_number(h),
                 expected: format!(
                     "a size giving at most {MAX_TRIANGLES} triangles (this one gives {nx} x {ny} \
                      cells, {per_cell} triangles each)"
@@ -159,7 +159,7 @@ pub fn oat_specimen(spec: &OatSpecimen) -> Result<GeneratedMesh, MeshError> {
 fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
     let bad = |parameter: &'static str, value: f64, expected: &str| MeshError::InvalidSpec {
         parameter,
-        value: readable(value),
+        value: readable_number(value),
         expected: expected.to_string(),
     };
     if !(spec.width.is_finite() && spec.width > 0.0) {
@@ -199,7 +199,7 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
             expected: format!(
                 "\"roving-diagonal\" at bias angle {}° (at 0° and ±90° its cell sides \
                  already follow the rovings and the stitching; the diagonals would not)",
-                readable(theta)
+                readable_number(theta)
             ),
         });
     }
@@ -210,7 +210,7 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
             expected: format!(
                 "a bias angle of 0° or ±90°, not {}° (elsewhere only \"roving-diagonal\" \
                  keeps an edge of every triangle along the rovings)",
-                readable(theta)
+                readable_number(theta)
             ),
         });
     }
@@ -220,7 +220,7 @@ fn validate(spec: &OatSpecimen) -> Result<(), MeshError> {
 fn too_many(h: f64) -> MeshError {
     MeshError::InvalidSpec {
         parameter: "element_size",
-        value: readable(h),
+        value: readable_number(h),
         expected: format!("a size giving at most {MAX_TRIANGLES} triangles"),
     }
 }
@@ -260,11 +260,11 @@ fn choose_counts(w: f64, l: f64, theta: f64, h: f64) -> Result<(usize, usize), M
         // Cells with dx/dy = tan|θ| get absurdly slender as θ → 0 or ±90°.
         return Err(MeshError::InvalidSpec {
             parameter: "bias_angle_deg",
-            value: readable(theta),
+            value: readable_number(theta),
             expected: format!(
                 "0 or ±90 exactly, or an angle whose aligned grid (dx/dy = tan|θ|) \
                  fits in {MAX_TRIANGLES} triangles at element size {} mm",
-                readable(h)
+                readable_number(h)
             ),
         });
     }
@@ -298,9 +298,37 @@ fn choose_counts(w: f64, l: f64, theta: f64, h: f64) -> Result<(usize, usize), M
             best = Some((nx, ny, dev, miss));
         }
     }
-    best.map(|(nx, ny, _, _)| (nx, ny))
-        .ok_or_else(|| too_many(h))
+    let (nx, ny) = best
+        .map(|(nx, ny, _, _)| (nx, ny))
+        .ok_or_else(|| too_many(h))?;
+    // A specimen narrower than an aligned cell still gets one cell across,
+    // and the alignment dx/dy = tan|θ| then shrinks every cell with it:
+    // refuse grids whose cells are far below the requested size rather
+    // than silently meshing with many times the triangles asked for.
+    let cell_area = (w / nx as f64) * (l / ny as f64);
+    if cell_area < MIN_CELL_AREA_FRACTION * h * h {
+        return Err(MeshError::InvalidSpec {
+            parameter: "element_size",
+            value: readable_number(h),
+            expected: format!(
+                "a size the specimen can hold: at {}° the aligned grid of a {} mm wide specimen \
+                 has cells of {:.3e} mm² ({} triangles) instead of about {:.3e} mm²; \
+                 use an element size of at most about {:.3e} mm, or give nx and ny",
+                readable_number(theta),
+                readable_number(w),
+                cell_area,
+                2 * nx * ny,
+                h * h,
+                w * t.sqrt()
+            ),
+        });
+    }
+    Ok((nx, ny))
 }
+
+/// Smallest cell area an `ElementSize` grid may have, as a fraction of the
+/// requested `h²` (a cell half the size in each direction).
+pub const MIN_CELL_AREA_FRACTION: f64 = 0.25;
 
 fn build(spec: &OatSpecimen, nx: usize, ny: usize, a0: Vector3<f64>) -> Mesh {
     let (w, l) = (spec.width, spec.length);

@@ -11,12 +11,15 @@ use nalgebra::Vector3;
 
 use super::generate::MAX_TRIANGLES;
 use super::{Mesh, MeshError};
-use crate::config::readable;
+use crate::config::readable_number;
 
 fn invalid(generator: &str, parameter: &str, value: f64, expected: &str) -> MeshError {
     MeshError::Invalid {
         file: generator.to_string(),
-        what: format!("{parameter} = {}: expected {expected}", readable(value)),
+        what: format!(
+            "{parameter} = {}: expected {expected}",
+            readable_number(value)
+        ),
     }
 }
 

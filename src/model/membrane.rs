@@ -132,11 +132,15 @@ impl MembraneTerm {
     }
 
     fn failure(&self, element: usize, kind: ElementFailureKind) -> TermFailure {
+        self.failure_reason(element, kind.to_string())
+    }
+
+    fn failure_reason(&self, element: usize, reason: String) -> TermFailure {
         TermFailure {
             term: self.name.clone(),
             what: "element",
             index: element,
-            reason: kind.to_string(),
+            reason,
         }
     }
 
@@ -200,18 +204,24 @@ impl MembraneTerm {
     fn frequency_failure(&self, u: &[f64]) -> TermFailure {
         let law = &self.membrane.material;
         let found = (0..self.fibre.elements.len()).find_map(|e| {
-            self.fibre
-                .frequency(e, law, u, self.element_density[e])
-                .err()
-                .map(|err| (e, err))
+            match self.fibre.frequency(e, law, u, self.element_density[e]) {
+                Ok(w2) if w2.is_finite() => None,
+                Ok(_) => Some(self.failure_reason(
+                    e,
+                    format!(
+                        "its highest frequency overflows (density {:e} t/mm³ against its stiffness): the stable time step would be zero; expected a realistic areal mass and stiffness",
+                        self.element_density[e]
+                    ),
+                )),
+                Err(err) => Some(self.failure(e, ElementFailureKind::Material(err))),
+            }
         });
-        match found {
-            Some((e, err)) => self.failure(e, ElementFailureKind::Material(err)),
-            None => self.failure(
+        found.unwrap_or_else(|| {
+            self.failure(
                 0,
                 ElementFailureKind::Material(crate::material::MaterialError::NonFiniteResponse),
-            ),
-        }
+            )
+        })
     }
 }
 

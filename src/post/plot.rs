@@ -104,8 +104,11 @@ fn bounds(panel: &Panel) -> ((f64, f64), (f64, f64)) {
             }
         }
     }
+    // Axes span at most ±1e300, so that the span and its margin stay finite
+    // (an infinite range would never finish placing its ticks).
     let pad = |(lo, hi): (f64, f64), margin: f64| {
-        if !(lo.is_finite() && hi.is_finite()) {
+        let (lo, hi) = (lo.max(-1e300), hi.min(1e300));
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
             (0.0, 1.0)
         } else if hi - lo <= f64::EPSILON * hi.abs().max(1.0) {
             (lo - 0.5 * lo.abs().max(1.0), hi + 0.5 * hi.abs().max(1.0))

@@ -287,6 +287,16 @@ enum AttemptError {
     },
     #[error("no descent direction even with a shifted tangent")]
     NoDescent,
+    #[error(
+        "non-finite forces (residual {residual:.3e} N, reaction {reaction:.3e} N, energy {energy:.3e} N·mm): the law or a term overflowed at this state"
+    )]
+    NonFinite {
+        residual: f64,
+        reaction: f64,
+        energy: f64,
+    },
+    #[error("non-finite forces along the Newton step: the law or a term overflowed there")]
+    NonFiniteTrial,
     #[error("the line search found no acceptable step")]
     LineSearch,
     #[error(
@@ -417,7 +427,7 @@ impl Newton<'_> {
     }
 
     /// `g(α) = r(u + α du)·du` with `u + α du` written to `trial`.
-    fn directional(&mut self, u: &[f64], du: &[f64], alpha: f64) -> Result<f64, TermFailure> {
+    fn directional(&mut self, u: &[f64], du: &[f64], alpha: f64) -> Result<f64, AttemptError> {
         let mut trial = std::mem::take(&mut self.work.trial);
         trial.copy_from_slice(u);
         for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
@@ -426,14 +436,21 @@ impl Newton<'_> {
         let result = self.assemble_force_into_trial(&trial);
         self.work.trial = trial;
         result?;
-        Ok(self
+        let slope: f64 = self
             .assembler
             .dofs
             .free
             .iter()
             .enumerate()
             .map(|(k, &d)| self.work.trial_internal[d] * du[k])
-            .sum())
+            .sum();
+        if slope.is_finite() {
+            Ok(slope)
+        } else {
+            // An overflowed trial state is inadmissible, like one the terms
+            // refuse: the line search shortens the step.
+            Err(AttemptError::NonFiniteTrial)
+        }
     }
 
     /// Line search on `g(α)`; returns the accepted α.
@@ -446,7 +463,7 @@ impl Newton<'_> {
             match self.directional(u, du, alpha) {
                 Ok(g) => break g,
                 Err(_) if alpha > ALPHA_MIN => alpha *= 0.5,
-                Err(e) => return Err(e.into()),
+                Err(e) => return Err(e),
             }
         };
         if g1 <= -ETA * g0.abs() || g1.abs() <= ETA * g0.abs() {
@@ -458,8 +475,15 @@ impl Newton<'_> {
         let (mut a_hi, mut g_hi) = (alpha, g1);
         let mut best = alpha;
         for _ in 0..8 {
-            let a = (a_lo * g_hi - a_hi * g_lo) / (g_hi - g_lo);
-            let a = a.clamp(a_lo + 0.1 * (a_hi - a_lo), a_hi - 0.1 * (a_hi - a_lo));
+            // Regula falsi, kept 10 % inside the bracket; bisection if the
+            // secant is not a number (g_hi = g_lo, or overflowed slopes).
+            let secant = (a_lo * g_hi - a_hi * g_lo) / (g_hi - g_lo);
+            let (lo, hi) = (a_lo + 0.1 * (a_hi - a_lo), a_hi - 0.1 * (a_hi - a_lo));
+            let a = if secant.is_finite() {
+                secant.max(lo).min(hi)
+            } else {
+                0.5 * (a_lo + a_hi)
+            };
             let g = match self.directional(u, du, a) {
                 Ok(g) => g,
                 Err(_) => {
@@ -543,6 +567,15 @@ impl Newton<'_> {
             let reaction = self.reaction_norm(&internal);
             self.work.internal = internal;
             let residual = norm(&r);
+            // Overflowed forces would pass the relative test below
+            // (∞ ≤ tol · ∞): never take them for an equilibrium.
+            if !(residual.is_finite() && reaction.is_finite() && energy.is_finite()) {
+                return Err(AttemptError::NonFinite {
+                    residual,
+                    reaction,
+                    energy,
+                });
+            }
             history.push(residual);
             if trace() {
                 eprintln!(

@@ -108,7 +108,16 @@ pub struct ExplicitParameters {
     /// Worker threads; 0 takes rayon's default (all cores, or
     /// `RAYON_NUM_THREADS`). Results do not depend on it.
     pub threads: usize,
+    /// Most time increments a run may take: a run whose first stable step
+    /// already asks for more is refused before it starts, one that reaches
+    /// it later stops there, incomplete, with its results so far.
+    pub max_increments: usize,
 }
+
+/// Default of [`ExplicitParameters::max_increments`]: 25 times the
+/// increments of the largest bench (the paper-size [0°/90°] hemisphere,
+/// about 400,000; `docs/benchmarks.md`).
+pub const DEFAULT_MAX_INCREMENTS: usize = 10_000_000;
 
 impl ExplicitParameters {
     /// Defaults for a run of duration `duration` \[s\]: smooth step, safety factor 0.9 updated every 100 steps, no
@@ -127,6 +136,7 @@ impl ExplicitParameters {
             kinetic_energy_warning: 0.01,
             energy_balance_warning: 0.01,
             threads: 0,
+            max_increments: DEFAULT_MAX_INCREMENTS,
         }
     }
 

@@ -395,6 +395,8 @@ impl ExplicitSystem {
     /// step, `α m ((v_{n−½} + v_n)/2)² Δt/2`, into `damping_partial` (so
     /// that the reported damping energy reaches `t_n` like the kinetic
     /// energy does). The extra dofs come last, in one more partial entry.
+    /// The kinetic energy of the nodes' prescribed dofs (clamps), with their
+    /// velocity `v_{n−½} = Δu/Δt`, goes per node block into `driven_partial`.
     #[allow(clippy::too_many_arguments)]
     pub fn gather_with_kinetic(
         &self,
@@ -405,6 +407,7 @@ impl ExplicitSystem {
         internal: &mut [f64],
         kinetic_partial: &mut [f64],
         damping_partial: &mut [f64],
+        driven_partial: &mut [f64],
     ) {
         let (node_internal, extra_internal) = internal.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
@@ -414,30 +417,38 @@ impl ExplicitSystem {
             .par_chunks_mut(3 * NODE_BLOCK)
             .zip(kinetic_nodes.par_iter_mut())
             .zip(damping_nodes.par_iter_mut())
+            .zip(driven_partial.par_iter_mut())
             .enumerate()
-            .for_each(|(block, ((f_block, kinetic_sum), damping_sum))| {
-                let mut kinetic = 0.0;
-                let mut dissipated = 0.0;
-                let mut f = [0.0; 3];
-                for (i, f_node) in f_block.chunks_exact_mut(3).enumerate() {
-                    let node = block * NODE_BLOCK + i;
-                    self.gather(forces, node, &mut f);
-                    f_node.copy_from_slice(&f);
-                    let m = self.masses.node[node];
-                    for (k, fk) in f.iter().enumerate() {
-                        let dof = 3 * node + k;
-                        if self.per_unit_load[dof].is_nan() {
-                            let v = v_half[dof];
-                            let vn = v + half_step * (-fk / m - damping * v);
-                            kinetic += 0.5 * m * vn * vn;
-                            let v_mean = 0.5 * (v + vn);
-                            dissipated += damping * m * v_mean * v_mean * half_step;
+            .for_each(
+                |(block, (((f_block, kinetic_sum), damping_sum), driven_sum))| {
+                    let mut kinetic = 0.0;
+                    let mut dissipated = 0.0;
+                    let mut driven = 0.0;
+                    let mut f = [0.0; 3];
+                    for (i, f_node) in f_block.chunks_exact_mut(3).enumerate() {
+                        let node = block * NODE_BLOCK + i;
+                        self.gather(forces, node, &mut f);
+                        f_node.copy_from_slice(&f);
+                        let m = self.masses.node[node];
+                        for (k, fk) in f.iter().enumerate() {
+                            let dof = 3 * node + k;
+                            if self.per_unit_load[dof].is_nan() {
+                                let v = v_half[dof];
+                                let vn = v + half_step * (-fk / m - damping * v);
+                                kinetic += 0.5 * m * vn * vn;
+                                let v_mean = 0.5 * (v + vn);
+                                dissipated += damping * m * v_mean * v_mean * half_step;
+                            } else {
+                                let v = v_half[dof];
+                                driven += 0.5 * m * v * v;
+                            }
                         }
                     }
-                }
-                *kinetic_sum = kinetic;
-                *damping_sum = dissipated;
-            });
+                    *kinetic_sum = kinetic;
+                    *damping_sum = dissipated;
+                    *driven_sum = driven;
+                },
+            );
         let mut kinetic = 0.0;
         let mut dissipated = 0.0;
         for (k, f_extra) in extra_internal.iter_mut().enumerate() {
