@@ -73,8 +73,47 @@ impl std::error::Error for ConfigError {}
 pub fn parse_toml<T: DeserializeOwned>(text: &str, source: &str) -> Result<T, ConfigError> {
     toml::from_str(text).map_err(|e| ConfigError::Syntax {
         source: source.to_string(),
-        message: e.to_string(),
+        message: shorten_numbers(&e.to_string(), text),
     })
+}
+
+/// `message` with every number of 20 or more digits that `text` does not
+/// hold written as [`readable_number`]: the parser quotes `1e308` as 309
+/// digits when it expected an integer, while a number quoted from the
+/// file stays as written.
+fn shorten_numbers(message: &str, text: &str) -> String {
+    let bytes = message.as_bytes();
+    let mut out = String::with_capacity(message.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let number = |b: u8| b.is_ascii_digit() || b == b'.';
+        if bytes[i].is_ascii_digit() {
+            let start = if i > 0 && bytes[i - 1] == b'-' {
+                i - 1
+            } else {
+                i
+            };
+            let mut end = i;
+            while end < bytes.len() && number(bytes[end]) {
+                end += 1;
+            }
+            let run = &message[start..end];
+            let digits = run.bytes().filter(u8::is_ascii_digit).count();
+            match run.parse::<f64>() {
+                Ok(x) if digits >= 20 && !text.contains(run) => {
+                    out.truncate(out.len() - (i - start));
+                    out.push_str(&readable_number(x));
+                }
+                _ => out.push_str(&message[i..end]),
+            }
+            i = end;
+        } else {
+            let c = message[i..].chars().next().expect("a char at a boundary");
+            out.push(c);
+            i += c.len_utf8();
+        }
+    }
+    out
 }
 
 /// Validation helper over one TOML text: turns spans into line numbers and

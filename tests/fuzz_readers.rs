@@ -89,6 +89,19 @@ fn names_place(msg: &str) -> bool {
     has_line_number || msg.contains("line ") || msg.contains(" = ") || msg.contains('[')
 }
 
+/// What is wrong with an error message for `input`: it must name `file`,
+/// a place where `place` (a key or a line), and print numbers short.
+fn bad_message(msg: &str, file: &str, place: bool, input: &[u8]) -> Option<String> {
+    if !msg.contains(file) {
+        Some(format!("error does not name the file: {msg}"))
+    } else if place && !names_place(msg) {
+        Some(format!("error names neither key nor line: {msg}"))
+    } else {
+        fuzz_common::long_number(msg, input)
+            .map(|n| format!("error writes a {}-digit number: {msg}", n.len()))
+    }
+}
+
 /// A seed input and the name it is read under.
 struct Seed {
     name: String,
@@ -207,27 +220,11 @@ fn check_case(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
         let shown = file.display().to_string();
         return match OatCase::load(&file) {
             Ok(_) => Some("a non-UTF-8 case file was accepted".into()),
-            Err(e) if e.to_string().contains(&shown) => None,
-            Err(e) => Some(format!("error does not name the file: {e}")),
+            Err(e) => bad_message(&e.to_string(), &shown, true, &bytes),
         };
     };
-    let config_error = |e: &dyn std::fmt::Display| {
-        let msg = e.to_string();
-        if !msg.contains(&name) {
-            Some(format!("error does not name the file: {msg}"))
-        } else if !names_place(&msg) {
-            Some(format!("error names neither key nor line: {msg}"))
-        } else {
-            None
-        }
-    };
-    let build_error = |msg: String| {
-        if msg.contains(&name) {
-            None
-        } else {
-            Some(format!("model error does not name the case file: {msg}"))
-        }
-    };
+    let config_error = |e: &dyn std::fmt::Display| bad_message(&e.to_string(), &name, true, &bytes);
+    let build_error = |msg: String| bad_message(&msg, &name, false, &bytes);
     if is_forming(&text) {
         let case = match FormingCase::from_toml_str(&text, &name, &base) {
             Ok(case) => case,
@@ -324,16 +321,7 @@ fn check_params(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
     match result {
         Ok(spec) => accepted_non_finite(&format!("{:?}", spec.material))
             .map(|at| format!("a non-finite parameter was accepted: {at}")),
-        Err(e) => {
-            let msg = e.to_string();
-            if !msg.contains(&shown) {
-                Some(format!("error does not name the file: {msg}"))
-            } else if !names_place(&msg) {
-                Some(format!("error names neither key nor line: {msg}"))
-            } else {
-                None
-            }
-        }
+        Err(e) => bad_message(&e.to_string(), &shown, true, &bytes),
     }
 }
 
@@ -370,10 +358,7 @@ fn check_mesh(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
             let finite = mesh.nodes.iter().all(|x| x.iter().all(|c| c.is_finite()));
             (!finite).then(|| "non-finite node coordinates were accepted".to_string())
         }
-        Err(e) => {
-            let msg = e.to_string();
-            (!msg.contains(&shown)).then(|| format!("error does not name the file: {msg}"))
-        }
+        Err(e) => bad_message(&e.to_string(), &shown, false, &bytes),
     }
 }
 
@@ -494,10 +479,7 @@ fn check_tool(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
             let finite = t.vertices.iter().all(|x| x.iter().all(|c| c.is_finite()));
             (!finite).then(|| "non-finite tool vertices were accepted".to_string())
         }
-        Err(e) => {
-            let msg = e.to_string();
-            (!msg.contains(&shown)).then(|| format!("error does not name the file: {msg}"))
-        }
+        Err(e) => bad_message(&e.to_string(), &shown, false, &bytes),
     }
 }
 
@@ -571,6 +553,9 @@ fn check_eval(bytes: Vec<u8>, name: String, _k: usize) -> Option<String> {
         }
     }
     let errors = String::from_utf8_lossy(&err);
+    if let Some(n) = fuzz_common::long_number(&errors, &bytes) {
+        return Some(format!("an error writes the {}-digit number {n}", n.len()));
+    }
     if let Some(l) = errors.lines().find(|l| !l.starts_with(&format!("{name}:"))) {
         return Some(format!("error message does not name the input: {l}"));
     }
@@ -861,5 +846,77 @@ fn forming_derived_values_that_overflow_are_refused_at_their_key() {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("f.toml:") && e.contains(key), "{e}");
+    }
+}
+
+/// Regression: an OAT density (`thickness = 5e-324`) and an explicit
+/// stroke time (`clamp_speed = 5e-324`, `duration = 1e-308`) that are
+/// infinite although every value given is finite are refused at their key.
+#[test]
+fn oat_derived_values_that_overflow_are_refused_at_their_key() {
+    let base = repo().join("cases");
+    let text = String::from_utf8(read(&base.join("oat45-explicit.toml"))).unwrap();
+    for (from, to, key) in [
+        (
+            "thickness = 0.3 ",
+            "thickness = 5e-324 ",
+            "material.thickness = 5e-324: expected a thickness for which the density",
+        ),
+        (
+            "clamp_speed = 100.0 ",
+            "clamp_speed = 5e-324 ",
+            "explicit.clamp_speed = 5e-324: expected a value for which the stroke of 80 mm",
+        ),
+        (
+            "clamp_speed = 100.0 ",
+            "duration = 1e-308 ",
+            "explicit.duration = 1e-308: expected a value for which the stroke of 80 mm",
+        ),
+    ] {
+        let bad = text.replacen(from, to, 1);
+        assert_ne!(bad, text, "{from} not in the explicit OAT case");
+        let e = OatCase::from_toml_str(&bad, "o.toml", &base)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("o.toml:") && e.contains(key), "{e}");
+    }
+}
+
+/// Regression: messages wrote `1e308` and `5e-324` out in full — the TOML
+/// parser's "expected i64" quote, the OAT output-displacement check, the
+/// name of a generated blank.
+#[test]
+fn messages_write_extreme_numbers_short() {
+    let base = repo().join("cases");
+    let oat = String::from_utf8(read(&base.join("oat45.toml"))).unwrap();
+    let patch = String::from_utf8(read(&base.join("verification/friction-patch.toml"))).unwrap();
+    let bad_oat = oat.replacen(
+        "output_displacements = [20.0, 40.0, 60.0]",
+        "output_displacements = [20.0, 40.0, 1e308]",
+        1,
+    );
+    let bad_cells = patch.replacen("element_size = 2.5", "cells = [4, 1e308]", 1);
+    let bad_size = patch.replacen("size = [20.0, 20.0]", "size = [5e-324, 20.0]", 1);
+    for (bad, expected) in [
+        (&bad_oat, "loading.output_displacements = 1e308"),
+        (&bad_cells, "floating point `1e308`"),
+        (&bad_size, "generated 5e-324 x 20 mm blank"),
+    ] {
+        let e = if is_forming(bad) {
+            match FormingCase::from_toml_str(bad, "c.toml", &base.join("verification")) {
+                Ok(case) => case.build().map(|_| ()).unwrap_err(),
+                Err(e) => e.to_string(),
+            }
+        } else {
+            OatCase::from_toml_str(bad, "c.toml", &base)
+                .map(|_| ())
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(e.contains(expected), "`{expected}` not in {e}");
+        assert!(
+            fuzz_common::long_number(&e, bad.as_bytes()).is_none(),
+            "{e}"
+        );
     }
 }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use nalgebra::{SymmetricEigen, Vector3};
 
 use super::forming::{FormingCase, PlyMesh, ToolMotion, ToolShape, ToolSpec};
+use crate::config::readable_number;
 use crate::contact::{
     Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole,
     PlateWithPolygonHole, RigidSurface, Side, Sphere, Tessellation, Torus,
@@ -259,7 +260,11 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
             for x in &mut mesh.nodes {
                 *x += shift;
             }
-            mesh.source = format!("generated {} x {} mm blank", size[0], size[1]);
+            mesh.source = format!(
+                "generated {} x {} mm blank",
+                readable_number(size[0]),
+                readable_number(size[1])
+            );
             mesh
         }
         PlyMesh::File { path } => {

@@ -302,8 +302,11 @@ impl OatCase {
                         return Err(check.invalid(
                             line,
                             "loading.output_displacements",
-                            format!("{d}"),
-                            &format!("displacements in (0, {displacement}] mm"),
+                            crate::config::readable_number(d),
+                            &format!(
+                                "displacements in (0, {}] mm",
+                                crate::config::readable_number(displacement)
+                            ),
                         ));
                     }
                 }

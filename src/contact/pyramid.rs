@@ -836,7 +836,9 @@ pub fn punch_opening(
             value: [plate_axis.x, plate_axis.y, plate_axis.z],
             expected: format!(
                 "parallel to the punch's axis ({}, {}, {})",
-                axis.x, axis.y, axis.z
+                crate::config::readable_number(axis.x),
+                crate::config::readable_number(axis.y),
+                crate::config::readable_number(axis.z)
             ),
         });
     }

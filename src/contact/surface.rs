@@ -33,7 +33,7 @@ pub const SINGULAR_FRACTION: f64 = 1e-12;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ShapeError {
     /// A scalar parameter out of its range.
-    #[error("{shape}: {parameter} = {value}: expected {expected}")]
+    #[error("{shape}: {parameter} = {}: expected {expected}", crate::config::readable_number(*.value))]
     Parameter {
         /// The shape (or tessellation) the parameter belongs to.
         shape: &'static str,
@@ -47,7 +47,9 @@ pub enum ShapeError {
     /// A direction (or point) of a placement out of its range.
     #[error(
         "placement: {parameter} = ({}, {}, {}): expected {expected}",
-        .value[0], .value[1], .value[2]
+        crate::config::readable_number(.value[0]),
+        crate::config::readable_number(.value[1]),
+        crate::config::readable_number(.value[2])
     )]
     Direction {
         /// The parameter's name.

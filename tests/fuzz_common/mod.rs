@@ -352,6 +352,29 @@ pub fn non_finite_at(text: &str) -> Option<String> {
     Some(format!("…{}", &text[start..(i + 3).min(text.len())]))
 }
 
+/// A run of 20 or more digits in `msg` that `input` does not hold: a
+/// number the program wrote out in full (`1e300` as 301 digits) rather
+/// than one it quotes from the input.
+pub fn long_number(msg: &str, input: &[u8]) -> Option<String> {
+    let bytes = msg.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i].is_ascii_digit() {
+            let start = i;
+            while i < bytes.len() && bytes[i].is_ascii_digit() {
+                i += 1;
+            }
+            let run = &bytes[start..i];
+            if run.len() >= 20 && !input.windows(run.len()).any(|w| w == run) {
+                return Some(String::from_utf8_lossy(run).into_owned());
+            }
+        } else {
+            i += 1;
+        }
+    }
+    None
+}
+
 /// One mutant of a reader that broke a property.
 #[derive(Debug)]
 pub struct Failure {

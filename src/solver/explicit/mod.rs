@@ -577,9 +577,9 @@ fn integrate(
                 && max_balance <= params.energy_balance_warning
             {
                 warnings.push(format!(
-                    "energy balance: the error is {:.2} % of the largest energy at load {load:.4} (t = {time:.4e} s), above the {:.2} % warning level; lower the time step (safety_factor) or the contact stiffness",
-                    100.0 * reported.relative_balance_error,
-                    100.0 * params.energy_balance_warning
+                    "energy balance: the error is {} % of the largest energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the time step (safety_factor) or the contact stiffness",
+                    percent(reported.relative_balance_error),
+                    percent(params.energy_balance_warning)
                 ));
             }
             max_balance = max_balance.max(reported.relative_balance_error);
@@ -589,10 +589,10 @@ fn integrate(
                     && max_kinetic_ratio <= params.kinetic_energy_warning
                 {
                     warnings.push(format!(
-                        "not quasi-static: kinetic energy {:.3e} N·mm is {:.2} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {:.2} % warning level; lower the loading speed or the mass scaling",
+                        "not quasi-static: kinetic energy {:.3e} N·mm is {} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the loading speed or the mass scaling",
                         reported.kinetic + reported.driven_kinetic,
-                        100.0 * ratio,
-                        100.0 * params.kinetic_energy_warning
+                        percent(ratio),
+                        percent(params.kinetic_energy_warning)
                     ));
                 }
                 max_kinetic_ratio = max_kinetic_ratio.max(ratio);
@@ -659,4 +659,16 @@ fn integrate(
         timings,
         threads: rayon::current_num_threads(),
     })
+}
+
+/// A fraction as a percentage for a warning: two decimals, or three
+/// significant digits in exponent form beyond a million per cent (an
+/// exploding run's ratio is not written out in 32 digits).
+fn percent(fraction: f64) -> String {
+    let p = 100.0 * fraction;
+    if p.abs() < 1e6 {
+        format!("{p:.2}")
+    } else {
+        format!("{p:.3e}")
+    }
 }
