@@ -9,15 +9,18 @@
 //!
 //! Work is capped through the seeds' own keys (`explicit.max_increments`,
 //! `solver.max_wall_seconds`), whose lines are never mutated. The bounded
-//! run draws [`DEFAULT_CASES`] mutants per seed; `NCFORM_FUZZ_CASES`
-//! raises the count and `NCFORM_FUZZ_SEED` changes the seed.
+//! run draws [`DEFAULT_CASES`] mutants per seed; `NCFORM_FUZZ_CASES=N`
+//! gives `N / 25` per seed (the reader harness's `N` per reader) and
+//! `NCFORM_FUZZ_SEED` changes the seed.
 
 mod fuzz_common;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use fuzz_common::{Failure, cases, guarded, mutate, non_finite_at, quiet_panics, report, show};
+use fuzz_common::{
+    Failure, cases_scaled, guarded, mutate, non_finite_at, quiet_panics, report, show,
+};
 use ncform::case::OatCase;
 use ncform::case::forming::FormingCase;
 use ncform::cli::form::run_forming;
@@ -26,6 +29,10 @@ use ncform::material::MaterialSpec;
 
 /// Mutants per seed in `cargo test`.
 const DEFAULT_CASES: usize = 200;
+
+/// A campaign's `NCFORM_FUZZ_CASES` (mutants per reader) divided by this
+/// gives the runs per seed: one run costs about 25 reads.
+const RUN_COST: usize = 25;
 
 /// Longest one run may take. The seeds run in well under a second and cap
 /// their own work (10 s of wall time for Newton, 20,000 increments); the
@@ -212,16 +219,18 @@ fn check_run(
         },
     };
     let ran = result.is_ok();
+    // Messages only: the summary's numbers are data, written in full.
     let text = match &result {
-        Ok(summary) => summary,
-        Err(msg) => msg,
+        Ok(summary) => fuzz_common::debug_strings(summary),
+        Err(msg) => msg.clone(),
     };
     let input = format!("{case_text}{params_text}");
-    if let Some(n) = fuzz_common::long_number(text, input.as_bytes()) {
+    if let Some(n) = fuzz_common::long_number(&text, input.as_bytes()) {
         return (
             Some(format!(
-                "the summary or error writes the {}-digit number {n}",
-                n.len()
+                "a message writes a {}-digit number: {}",
+                n.len(),
+                fuzz_common::clip(&text.replace(&n, "<HERE>"), 1500)
             )),
             ran,
         );
@@ -266,7 +275,7 @@ fn strings_removed_non_finite(debug: &str) -> Option<String> {
 fn campaign(name: &str, kind: Kind, case_text: &'static str) -> (Vec<Failure>, usize, usize) {
     quiet_panics();
     let params = MaterialSpec::named_text("schaefer2024").unwrap();
-    let count = cases(DEFAULT_CASES);
+    let count = cases_scaled(DEFAULT_CASES, RUN_COST);
     let mut failures = Vec::new();
     let mut solved = 0;
     for k in 0..count {

@@ -619,15 +619,16 @@ impl FormingCase {
                         && point.distance < 0.0
                     {
                         return Err(format!(
-                            "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {:.4} mm inside the tool; the mid-surface may sit at most the contact offset ({offset} mm) from touching: move the tool or the ply",
+                            "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {} mm inside the tool; the mid-surface may sit at most the contact offset ({} mm) from touching: move the tool or the ply",
                             self.source,
                             spec.name,
                             ply.name,
                             ply.mesh.node_label(n),
-                            x.x,
-                            x.y,
-                            x.z,
-                            -point.distance
+                            readable_number(x.x),
+                            readable_number(x.y),
+                            readable_number(x.z),
+                            readable_number(-point.distance),
+                            readable_number(offset)
                         ));
                     }
                 }

@@ -291,7 +291,10 @@ impl OatCase {
             &raw.loading.displacement,
             "loading.displacement",
             |x| x > 0.0 && x <= length,
-            &format!("a clamp displacement in (0, {length}] mm (at most the free length)"),
+            &format!(
+                "a clamp displacement in (0, {}] mm (at most the free length)",
+                crate::config::readable_number(length)
+            ),
         )?;
         let mut output_displacements = match &raw.loading.output_displacements {
             None => vec![],
@@ -703,7 +706,7 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
         if v.is_finite() && v > 0.0 {
             Ok(())
         } else {
-            Err(bad(key, v.to_string(), "a number > 0"))
+            Err(bad(key, crate::config::readable_number(v), "a number > 0"))
         }
     };
     pos("initial_increment", p.initial_increment)?;
@@ -715,15 +718,23 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
     if p.min_increment > p.max_increment {
         return Err(bad(
             "min_increment",
-            p.min_increment.to_string(),
+            crate::config::readable_number(p.min_increment),
             "at most max_increment",
         ));
     }
     if !(p.growth >= 1.0 && p.growth.is_finite()) {
-        return Err(bad("growth", p.growth.to_string(), "a factor ≥ 1"));
+        return Err(bad(
+            "growth",
+            crate::config::readable_number(p.growth),
+            "a factor ≥ 1",
+        ));
     }
     if !(p.cutback > 0.0 && p.cutback < 1.0) {
-        return Err(bad("cutback", p.cutback.to_string(), "a factor in (0, 1)"));
+        return Err(bad(
+            "cutback",
+            crate::config::readable_number(p.cutback),
+            "a factor in (0, 1)",
+        ));
     }
     if p.max_iterations == 0 {
         return Err(bad("max_iterations", "0".into(), "at least 1"));
@@ -736,7 +747,7 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
     if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
         return Err(bad(
             "stabilisation_factor",
-            p.stabilisation_factor.to_string(),
+            crate::config::readable_number(p.stabilisation_factor),
             "a number ≥ 0",
         ));
     }

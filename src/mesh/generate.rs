@@ -397,8 +397,10 @@ fn build(spec: &OatSpecimen, nx: usize, ny: usize, a0: Vector3<f64>) -> Mesh {
         node_sets,
         element_sets,
         source: format!(
-            "generated OAT specimen {w} x {l} mm, bias {}°, {nx} x {ny} cells, {pattern}",
-            spec.bias_angle_deg
+            "generated OAT specimen {} x {} mm, bias {}°, {nx} x {ny} cells, {pattern}",
+            readable_number(w),
+            readable_number(l),
+            readable_number(spec.bias_angle_deg)
         ),
     }
 }

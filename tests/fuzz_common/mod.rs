@@ -52,6 +52,16 @@ pub fn cases(default: usize) -> usize {
         .unwrap_or(default)
 }
 
+/// Mutants per solver seed: `NCFORM_FUZZ_CASES / divisor` if set (a run
+/// costs some tens of reads, so one variable sizes both harnesses of a
+/// campaign), else `default`.
+pub fn cases_scaled(default: usize, divisor: usize) -> usize {
+    std::env::var("NCFORM_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .map_or(default, |n| (n / divisor).max(1))
+}
+
 /// The base seed: `NCFORM_FUZZ_SEED` if set, else a fixed one (so the
 /// bounded run is the same every time).
 pub fn base_seed() -> u64 {
@@ -352,20 +362,25 @@ pub fn non_finite_at(text: &str) -> Option<String> {
     Some(format!("…{}", &text[start..(i + 3).min(text.len())]))
 }
 
-/// A run of 20 or more digits in `msg` that `input` does not hold: a
-/// number the program wrote out in full (`1e300` as 301 digits) rather
-/// than one it quotes from the input.
+/// A number in `msg` written out in full rather than short — 30 or more
+/// digits (`1e300` as 301 digits, `5e-324` as 326) or 20 or more
+/// significant ones (a shortest round-trip `f64` has at most 17) — that
+/// `input` does not hold (a number quoted from the input stays as it was
+/// written).
 pub fn long_number(msg: &str, input: &[u8]) -> Option<String> {
     let bytes = msg.as_bytes();
     let mut i = 0;
     while i < bytes.len() {
         if bytes[i].is_ascii_digit() {
             let start = i;
-            while i < bytes.len() && bytes[i].is_ascii_digit() {
+            while i < bytes.len() && (bytes[i].is_ascii_digit() || bytes[i] == b'.') {
                 i += 1;
             }
             let run = &bytes[start..i];
-            if run.len() >= 20 && !input.windows(run.len()).any(|w| w == run) {
+            let digits: Vec<u8> = run.iter().copied().filter(u8::is_ascii_digit).collect();
+            let significant = digits.iter().skip_while(|&&d| d == b'0').count();
+            let long = digits.len() >= 30 || significant >= 20;
+            if long && !input.windows(run.len()).any(|w| w == run) {
                 return Some(String::from_utf8_lossy(run).into_owned());
             }
         } else {
@@ -373,6 +388,30 @@ pub fn long_number(msg: &str, input: &[u8]) -> Option<String> {
         }
     }
     None
+}
+
+/// The contents of the `"…"` strings of `Debug` text, one a line: the
+/// messages, names and reasons of a value, without its numbers.
+pub fn debug_strings(debug: &str) -> String {
+    let mut out = String::new();
+    let (mut in_string, mut escaped) = (false, false);
+    for c in debug.chars() {
+        match (in_string, escaped, c) {
+            (true, true, c) => {
+                escaped = false;
+                out.push(c);
+            }
+            (true, false, '\\') => escaped = true,
+            (true, false, '"') => {
+                in_string = false;
+                out.push('\n');
+            }
+            (false, _, '"') => in_string = true,
+            (true, false, c) => out.push(c),
+            (false, _, _) => {}
+        }
+    }
+    out
 }
 
 /// One mutant of a reader that broke a property.
