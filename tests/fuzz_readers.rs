@@ -19,7 +19,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use fuzz_common::{Failure, cases, guarded, mutate, non_finite_at, quiet_panics, report, show};
+use fuzz_common::{
+    Failure, accepted_non_finite, cases, guarded, mutate, quiet_panics, report, show,
+};
 use ncform::case::OatCase;
 use ncform::case::forming::{FormingCase, is_forming};
 use ncform::cli::material_eval;
@@ -52,28 +54,6 @@ fn tomls(folder: &str) -> Vec<PathBuf> {
         .collect();
     v.sort();
     v
-}
-
-/// Whether the `Debug` text of what a reader returned shows a non-finite
-/// number outside its strings (a title may say "NaN"), other than the
-/// laws' derived `x_t` (the onset of a transition, infinite by design for
-/// a term without one).
-fn accepted_non_finite(debug: &str) -> Option<String> {
-    let mut numbers = String::with_capacity(debug.len());
-    let (mut in_string, mut escaped) = (false, false);
-    for c in debug.chars() {
-        match (in_string, escaped, c) {
-            (true, true, _) => escaped = false,
-            (true, false, '\\') => escaped = true,
-            (_, false, '"') => {
-                in_string = !in_string;
-                numbers.push('"');
-            }
-            (true, false, _) => {}
-            (false, _, c) => numbers.push(c),
-        }
-    }
-    non_finite_at(&numbers.replace("x_t: inf", "x_t: (none)"))
 }
 
 fn is_params(text: &str) -> bool {

@@ -105,41 +105,33 @@ pub const PARAMETER_MAX: f64 = 1e12;
 /// in MPa). Below it the law divides by (nearly) zero.
 pub const PARAMETER_MIN: f64 = 1e-12;
 
+/// The value if `ok` accepts it and it is 0 or of a magnitude in
+/// [`PARAMETER_MIN`, `PARAMETER_MAX`]; the error names the key, the value
+/// and which rule it breaks.
+fn param(
+    check: &Checker,
+    v: &Spanned<f64>,
+    key: &str,
+    ok: impl Fn(f64) -> bool,
+    expected: &str,
+) -> Result<f64, ParamsError> {
+    check.range(v, key, ok, expected)?;
+    check.range(
+        v,
+        key,
+        |x| x == 0.0 || (PARAMETER_MIN..=PARAMETER_MAX).contains(&x.abs()),
+        &format!("{expected}, of magnitude within [{PARAMETER_MIN:e}, {PARAMETER_MAX:e}]"),
+    )
+}
+
 /// The validation of each table, on the shared checker.
 trait ParamsChecks {
-    /// The value if `ok` accepts it and it is 0 or of a magnitude in
-    /// [`PARAMETER_MIN`, `PARAMETER_MAX`]; the error names the key, the
-    /// value and which rule it breaks.
-    fn param(
-        &self,
-        v: &Spanned<f64>,
-        key: &str,
-        ok: impl Fn(f64) -> bool,
-        expected: &str,
-    ) -> Result<f64, ParamsError>;
     fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError>;
     fn coupling(&self, raw: Option<&CouplingRaw>) -> Result<Coupling, ParamsError>;
     fn svk(&self, raw: Option<&SvkRaw>) -> Result<OrthotropicSvk, ParamsError>;
 }
 
 impl ParamsChecks for Checker<'_> {
-    fn param(
-        &self,
-        v: &Spanned<f64>,
-        key: &str,
-        ok: impl Fn(f64) -> bool,
-        expected: &str,
-    ) -> Result<f64, ParamsError> {
-        let x = self.range(v, key, ok, expected)?;
-        self.range(
-            v,
-            key,
-            |x| x == 0.0 || (PARAMETER_MIN..=PARAMETER_MAX).contains(&x.abs()),
-            &format!("{expected}, of magnitude within [{PARAMETER_MIN:e}, {PARAMETER_MAX:e}]"),
-        )?;
-        Ok(x)
-    }
-
     fn term(&self, raw: Option<&TermRaw>, table: &str) -> Result<GeneralizedTerm, ParamsError> {
         let raw = raw.ok_or_else(|| {
             self.missing(
@@ -148,7 +140,8 @@ impl ParamsChecks for Checker<'_> {
             )
         })?;
         let key = |k: &str| format!("{table}.{k}");
-        let c_ini = self.param(
+        let c_ini = param(
+            self,
             &raw.c_ini,
             &key("c_ini"),
             |x| x > 0.0,
@@ -157,14 +150,22 @@ impl ParamsChecks for Checker<'_> {
         let transition = match (&raw.s_ini, &raw.c_mid, &raw.delta_s_mid) {
             (None, None, None) => None,
             (Some(s), Some(c), Some(d)) => Some(Transition {
-                s_ini: self.param(
+                s_ini: param(
+                    self,
                     s,
                     &key("s_ini"),
                     |x| x > 0.0,
                     "an initial stress limit > 0 MPa",
                 )?,
-                c_mid: self.param(c, &key("c_mid"), |x| x >= 0.0, "a middle modulus ≥ 0 MPa")?,
-                delta_s_mid: self.param(
+                c_mid: param(
+                    self,
+                    c,
+                    &key("c_mid"),
+                    |x| x >= 0.0,
+                    "a middle modulus ≥ 0 MPa",
+                )?,
+                delta_s_mid: param(
+                    self,
                     d,
                     &key("delta_s_mid"),
                     |x| x > 0.0,
@@ -195,8 +196,14 @@ impl ParamsChecks for Checker<'_> {
         let lock = match (&raw.c_lock, &raw.i_lock) {
             (None, None) => None,
             (Some(c), Some(i)) => Some(Lock {
-                c_lock: self.param(c, &key("c_lock"), |x| x >= 0.0, "a lock modulus ≥ 0 MPa")?,
-                i_lock: self.param(i, &key("i_lock"), |x| x >= 0.0, "a lock onset ≥ 0")?,
+                c_lock: param(
+                    self,
+                    c,
+                    &key("c_lock"),
+                    |x| x >= 0.0,
+                    "a lock modulus ≥ 0 MPa",
+                )?,
+                i_lock: param(self, i, &key("i_lock"), |x| x >= 0.0, "a lock onset ≥ 0")?,
             }),
             (Some(c), None) => {
                 return Err(self.invalid(
@@ -223,14 +230,22 @@ impl ParamsChecks for Checker<'_> {
             self.missing("[coupling]", "a table k_min, s11, e11 (law \"ud-ncf\")")
         })?;
         Ok(Coupling {
-            k_min: self.param(
+            k_min: param(
+                self,
                 &raw.k_min,
                 "coupling.k_min",
                 |x| (0.0..=1.0).contains(&x),
                 "a value in [0, 1]",
             )?,
-            s11: self.param(&raw.s11, "coupling.s11", |x| x >= 0.0, "an intensity ≥ 0")?,
-            e11: self.param(
+            s11: param(
+                self,
+                &raw.s11,
+                "coupling.s11",
+                |x| x >= 0.0,
+                "an intensity ≥ 0",
+            )?,
+            e11: param(
+                self,
                 &raw.e11,
                 "coupling.e11",
                 |x| x >= 1.0,
@@ -246,11 +261,18 @@ impl ParamsChecks for Checker<'_> {
                 "a table e1, e2, nu12, g12 (law \"orthotropic-svk\")",
             )
         })?;
-        let e1 = self.param(&raw.e1, "svk.e1", |x| x > 0.0, "a modulus > 0 MPa")?;
-        let e2 = self.param(&raw.e2, "svk.e2", |x| x > 0.0, "a modulus > 0 MPa")?;
-        let g12 = self.param(&raw.g12, "svk.g12", |x| x > 0.0, "a shear modulus > 0 MPa")?;
+        let e1 = param(self, &raw.e1, "svk.e1", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let e2 = param(self, &raw.e2, "svk.e2", |x| x > 0.0, "a modulus > 0 MPa")?;
+        let g12 = param(
+            self,
+            &raw.g12,
+            "svk.g12",
+            |x| x > 0.0,
+            "a shear modulus > 0 MPa",
+        )?;
         let bound = (e1 / e2).sqrt();
-        let nu12 = self.param(
+        let nu12 = param(
+            self,
             &raw.nu12,
             "svk.nu12",
             |x| x * x < e1 / e2,

@@ -390,28 +390,46 @@ pub fn long_number(msg: &str, input: &[u8]) -> Option<String> {
     None
 }
 
-/// The contents of the `"…"` strings of `Debug` text, one a line: the
-/// messages, names and reasons of a value, without its numbers.
-pub fn debug_strings(debug: &str) -> String {
-    let mut out = String::new();
+/// `Debug` text split into its strings' contents (one a line) and the
+/// rest (its numbers and names, each string left as `""`).
+fn split_debug(debug: &str) -> (String, String) {
+    let (mut strings, mut rest) = (String::new(), String::with_capacity(debug.len()));
     let (mut in_string, mut escaped) = (false, false);
     for c in debug.chars() {
         match (in_string, escaped, c) {
             (true, true, c) => {
                 escaped = false;
-                out.push(c);
+                strings.push(c);
             }
             (true, false, '\\') => escaped = true,
             (true, false, '"') => {
                 in_string = false;
-                out.push('\n');
+                strings.push('\n');
+                rest.push('"');
             }
-            (false, _, '"') => in_string = true,
-            (true, false, c) => out.push(c),
-            (false, _, _) => {}
+            (false, _, '"') => {
+                in_string = true;
+                rest.push('"');
+            }
+            (true, false, c) => strings.push(c),
+            (false, _, c) => rest.push(c),
         }
     }
-    out
+    (strings, rest)
+}
+
+/// The contents of the `"…"` strings of `Debug` text, one a line: the
+/// messages, names and reasons of a value, without its numbers.
+pub fn debug_strings(debug: &str) -> String {
+    split_debug(debug).0
+}
+
+/// The first non-finite number in the `Debug` text of what a reader or a
+/// run returned, outside its strings (a title may say "NaN"), other than
+/// the laws' derived `x_t` (the onset of a transition, infinite by design
+/// for a term without one).
+pub fn accepted_non_finite(debug: &str) -> Option<String> {
+    non_finite_at(&split_debug(debug).1.replace("x_t: inf", "x_t: (none)"))
 }
 
 /// One mutant of a reader that broke a property.
