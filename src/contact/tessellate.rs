@@ -70,10 +70,21 @@ fn check_segments(shape: &'static str, segments: usize) -> Result<usize, ShapeEr
 }
 
 /// Divisions of a straight profile piece of `length` so that its pieces
-/// are no longer than `step` (at least one).
+/// are no longer than `step` (at least one, at most
+/// [`MAX_PROFILE_DIVISIONS`]: the tessellation only draws the tool, and a
+/// slender one — a 10⁻³⁰ mm radius, say — must not ask for more pieces
+/// than memory holds).
 pub(crate) fn divisions(length: f64, step: f64) -> usize {
-    ((length / step).ceil() as usize).max(1)
+    let pieces = (length / step).ceil();
+    if pieces.is_nan() {
+        1
+    } else {
+        (pieces as usize).clamp(1, MAX_PROFILE_DIVISIONS)
+    }
 }
+
+/// Most pieces of one straight profile piece of a drawn tool.
+pub const MAX_PROFILE_DIVISIONS: usize = 1000;
 
 /// The profile `(w, z)` of a plate's working surface across the edge of
 /// its opening, `w` measured outwards from the opening's axis (a round
