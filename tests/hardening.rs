@@ -439,3 +439,39 @@ fn plots_of_extreme_values_finish() {
     .unwrap();
     assert!(path.exists());
 }
+
+/// A forming case in `cases/verification/` with one line replaced, written
+/// next to the original (its relative paths stay valid) and loaded.
+fn forming_variant(dir: &Path, case: &str, from: &str, to: &str) -> Result<FormingCase, String> {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cases/verification")
+        .join(case);
+    let text = edit(&fs::read_to_string(&source).unwrap(), from, to);
+    let path = write(&dir.join(case), &text);
+    FormingCase::load(&path).map_err(|e| e.to_string())
+}
+
+/// A slender drawn tool (a cylinder of 1e-30 mm radius) builds without
+/// asking for more drawing pieces than memory holds (before: a capacity
+/// overflow panic); an absurd drawn extent is refused at its key.
+#[test]
+fn drawn_tools_stay_bounded() {
+    let dir = TempDir::new().unwrap();
+    let case = forming_variant(
+        dir.path(),
+        "capstan.toml",
+        "radius = 50.0",
+        "radius = 1e-30",
+    )
+    .unwrap();
+    within(60, move || case.build().map(|_| ()))
+        .unwrap_or_else(|e| panic!("the slender cylinder should build: {e}"));
+    let err = forming_variant(
+        dir.path(),
+        "capstan.toml",
+        "extent = 20.0",
+        "extent = 1e308",
+    )
+    .unwrap_err();
+    assert_mentions(&err, &["capstan.toml:", "extent = 1e308", "(0, 1e6]"]);
+}

@@ -614,7 +614,7 @@ fn bad_parameter_files_are_rejected_with_file_key_value_and_range() {
         ),
         (
             default_with("c_mid = 0.03", "c_mid = nan"),
-            vec!["w8.c_mid", "= nan:"],
+            vec!["w8.c_mid", "= nan"],
         ),
         (
             default_with("delta_s_mid = 0.02", "delta_s_mid = 0.0"),

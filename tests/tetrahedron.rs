@@ -122,7 +122,7 @@ fn bad_tetrahedron_keys_name_key_value_and_expectation() {
         ),
         (
             vec![("face_angle_deg = 70.528779366", "face_angle_deg = nan")],
-            vec!["tool[2].face_angle_deg", "NaN"],
+            vec!["tool[2].face_angle_deg", "= nan"],
         ),
         (
             vec![("rounding_radius = 10.0", "rounding_radius = -1.0")],

@@ -1669,7 +1669,14 @@ fn tool_spec(
     };
     let extent = match &t.extent {
         None => 200.0,
-        Some(e) => check.range(e, &key("extent"), |x| x > 0.0, "a half-size > 0 mm")?,
+        // Drawn only: a kilometre is far beyond any press, and keeps the
+        // drawn points finite.
+        Some(e) => check.range(
+            e,
+            &key("extent"),
+            |x| x > 0.0 && x <= 1e6,
+            "a half-size in (0, 1e6] mm",
+        )?,
     };
     #[derive(Clone, Copy)]
     enum Move {

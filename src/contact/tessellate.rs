@@ -69,22 +69,22 @@ fn check_segments(shape: &'static str, segments: usize) -> Result<usize, ShapeEr
     }
 }
 
-/// Most pieces a drawn profile piece is cut into. A tool much smaller than
-/// its drawn extent (a 1e-9 mm cylinder drawn 200 mm long) would otherwise
-/// ask for billions of rows; its drawing gets longer cells instead.
-pub const MAX_DIVISIONS: usize = 4096;
-
 /// Divisions of a straight profile piece of `length` so that its pieces
-/// are no longer than `step` (at least one, at most [`MAX_DIVISIONS`]; a
-/// NaN ratio gives one).
+/// are no longer than `step` (at least one, at most
+/// [`MAX_PROFILE_DIVISIONS`]: the tessellation only draws the tool, and a
+/// slender one — a 10⁻³⁰ mm radius, say — must not ask for more pieces
+/// than memory holds).
 pub(crate) fn divisions(length: f64, step: f64) -> usize {
-    let n = (length / step).ceil();
-    if n.is_nan() {
+    let pieces = (length / step).ceil();
+    if pieces.is_nan() {
         1
     } else {
-        (n.min(MAX_DIVISIONS as f64) as usize).max(1)
+        (pieces as usize).clamp(1, MAX_PROFILE_DIVISIONS)
     }
 }
+
+/// Most pieces of one straight profile piece of a drawn tool.
+pub const MAX_PROFILE_DIVISIONS: usize = 1000;
 
 /// The profile `(w, z)` of a plate's working surface across the edge of
 /// its opening, `w` measured outwards from the opening's axis (a round
