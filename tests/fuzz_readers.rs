@@ -900,3 +900,19 @@ fn messages_write_extreme_numbers_short() {
         );
     }
 }
+
+/// Regression (found by the campaign): a key with an escaped newline made
+/// a two-line error message, the second line naming no input.
+#[test]
+fn eval_error_for_a_key_with_a_newline_is_one_line() {
+    let material = MaterialSpec::default_set().material;
+    let input = b"{\"C\": [[1.0, 0.0], [0.0, 1.0]], \"fiber_\\ngle_deg\": 0.0}\n";
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    material_eval::run(&material, input.as_slice(), &mut out, &mut err, "in.jsonl").unwrap();
+    let err = String::from_utf8(err).unwrap();
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("in.jsonl:1: ") && err.contains("fiber_\\ngle_deg"),
+        "{err}"
+    );
+}

@@ -133,7 +133,7 @@ impl ExplicitSettings {
                 return Err(check.invalid(
                     check.line_of(d),
                     "explicit.duration",
-                    format!("{}", d.get_ref()),
+                    crate::config::readable_number(*d.get_ref()),
                     "either explicit.clamp_speed or explicit.duration, not both",
                 ));
             }
@@ -178,7 +178,7 @@ impl ExplicitSettings {
                 return Err(check.invalid(
                     check.line_of(dt),
                     "explicit.time_step",
-                    format!("{}", dt.get_ref()),
+                    crate::config::readable_number(*dt.get_ref()),
                     "either explicit.time_step (fixed) or explicit.safety_factor (stable), not both",
                 ));
             }

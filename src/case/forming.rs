@@ -744,7 +744,7 @@ impl FormingCase {
                             Some(x) => Err(check.invalid(
                                 0,
                                 &key(&format!("bending.{k}")),
-                                format!("{x}"),
+                                crate::config::readable_number(*x),
                                 "a bending stiffness ≥ 0 N·mm",
                             )),
                         };
@@ -1704,7 +1704,12 @@ fn tool_spec(
         Some(d) => vector3(check, d, &key("direction"), true),
     };
     let unused = |v: &Option<Spanned<f64>>, k: &str, why: &str| match v {
-        Some(v) => Err(check.invalid(check.line_of(v), &key(k), format!("{}", v.get_ref()), why)),
+        Some(v) => Err(check.invalid(
+            check.line_of(v),
+            &key(k),
+            crate::config::readable_number(*v.get_ref()),
+            why,
+        )),
         None => Ok(()),
     };
     let motion = match motion_kind {

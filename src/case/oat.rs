@@ -353,7 +353,7 @@ impl OatCase {
                 return Err(check.invalid(
                     check.line_of(d),
                     "material.density",
-                    format!("{}", d.get_ref()),
+                    crate::config::readable_number(*d.get_ref()),
                     "either material.areal_mass [kg/m²] or material.density [t/mm³], not both",
                 ));
             }

@@ -62,6 +62,19 @@ pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
         let message = e.to_string();
         // serde_json appends " at line 1 column N"; the column is what helps.
         let message = message.split(" at line ").next().unwrap_or(&message);
+        // A key may hold an escaped newline or other control character:
+        // keep the answer one line.
+        let message: String = message
+            .chars()
+            .flat_map(|c| {
+                let escaped: Vec<char> = if c.is_control() {
+                    c.escape_default().collect()
+                } else {
+                    vec![c]
+                };
+                escaped
+            })
+            .collect();
         format!(
             "invalid input at column {}: {message} (expected {{\"C\": [[c11, c12], [c12, c22]], \"fiber_angle_deg\": θ}})",
             e.column()

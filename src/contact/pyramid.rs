@@ -265,8 +265,9 @@ impl Pyramid {
                 parameter: "height above the tip",
                 value: z_local,
                 expected: format!(
-                    "a plane cutting the punch's faces: between {r} and {} mm above its tip",
-                    r + self.height
+                    "a plane cutting the punch's faces: between {} and {} mm above its tip",
+                    crate::config::readable_number(r),
+                    crate::config::readable_number(r + self.height)
                 ),
             });
         }

@@ -129,7 +129,8 @@ pub fn disk(radius: f64, element_size: f64) -> Result<Mesh, MeshError> {
         element_labels: (1..=triangles.len() as i64).collect(),
         fibres: Vec::new(),
         source: format!(
-            "generated disk, radius {radius} mm, {n} rings, {} triangles",
+            "generated disk, radius {} mm, {n} rings, {} triangles",
+            readable_number(radius),
             triangles.len()
         ),
         nodes,
@@ -338,8 +339,12 @@ pub fn wrapped_strip(spec: &WrappedStrip) -> Result<Mesh, MeshError> {
         node_labels: (1..=nodes.len() as i64).collect(),
         element_labels: (1..=triangles.len() as i64).collect(),
         source: format!(
-            "generated wrapped strip, width {} mm, radius {r} mm, wrap {alpha} rad, tails {lt} mm, {} x {n_width} cells",
-            spec.width, cells
+            "generated wrapped strip, width {} mm, radius {} mm, wrap {} rad, tails {} mm, {} x {n_width} cells",
+            readable_number(spec.width),
+            readable_number(r),
+            readable_number(alpha),
+            readable_number(lt),
+            cells
         ),
         nodes,
         triangles,

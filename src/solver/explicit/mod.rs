@@ -662,11 +662,12 @@ fn integrate(
 }
 
 /// A fraction as a percentage for a warning: two decimals, or three
-/// significant digits in exponent form beyond a million per cent (an
-/// exploding run's ratio is not written out in 32 digits).
+/// significant digits in exponent form below 0.01 % and beyond a million
+/// per cent (an exploding run's ratio is not written out in 32 digits, a
+/// tiny warning level not as 0.00).
 fn percent(fraction: f64) -> String {
     let p = 100.0 * fraction;
-    if p.abs() < 1e6 {
+    if p == 0.0 || (0.01..1e6).contains(&p.abs()) {
         format!("{p:.2}")
     } else {
         format!("{p:.3e}")
