@@ -306,7 +306,7 @@ fn generator_rejects_bad_specs() {
                 length: f64::NAN,
                 ..ok
             },
-            &["length = NaN", "finite"],
+            &["length = nan", "finite"],
         ),
         (
             OatSpecimen {
@@ -327,7 +327,7 @@ fn generator_rejects_bad_specs() {
                 bias_angle_deg: f64::NAN,
                 ..ok
             },
-            &["bias_angle_deg = NaN"],
+            &["bias_angle_deg = nan"],
         ),
         (
             OatSpecimen {

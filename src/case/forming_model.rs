@@ -627,7 +627,14 @@ impl FormingCase {
                             readable_number(x.x),
                             readable_number(x.y),
                             readable_number(x.z),
-                            readable_number(-point.distance),
+                            {
+                                let depth = -point.distance;
+                                if depth < 1e6 {
+                                    format!("{depth:.4}")
+                                } else {
+                                    readable_number(depth)
+                                }
+                            },
                             readable_number(offset)
                         ));
                     }
