@@ -230,6 +230,7 @@ impl ExplicitSettings {
             kinetic_energy_warning: self.kinetic_energy_warning,
             energy_balance_warning: self.energy_balance_warning,
             threads: self.threads,
+            cancel: crate::solver::CancelToken::default(),
         }
     }
 }

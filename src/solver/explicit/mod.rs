@@ -495,7 +495,9 @@ fn integrate(
         reaction = new_reaction;
         load = load_next;
 
-        if lands {
+        // On a stop request the state reached is output as a last record.
+        let interrupted = params.cancel.is_cancelled();
+        if lands || interrupted {
             let clock = Instant::now();
             let (kinetic, half_step_damping, terms) = match kinetic_and_terms(
                 &system,
@@ -565,8 +567,13 @@ fn integrate(
                 },
             );
             last_output_load = load;
-            next_output += 1;
+            next_output += usize::from(lands);
             timings.outputs += clock.elapsed().as_secs_f64();
+        }
+        if interrupted {
+            break RunStatus::Interrupted {
+                load_reached: last_output_load,
+            };
         }
 
         if increments.is_multiple_of(update_interval) {

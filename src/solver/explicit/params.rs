@@ -108,6 +108,10 @@ pub struct ExplicitParameters {
     /// Worker threads; 0 takes rayon's default (all cores, or
     /// `RAYON_NUM_THREADS`). Results do not depend on it.
     pub threads: usize,
+    /// Stop (interrupted, after an output of the state reached) at the next
+    /// time increment once this is cancelled. Not a case-file key.
+    #[serde(skip)]
+    pub cancel: crate::solver::CancelToken,
 }
 
 impl ExplicitParameters {
@@ -127,6 +131,7 @@ impl ExplicitParameters {
             kinetic_energy_warning: 0.01,
             energy_balance_warning: 0.01,
             threads: 0,
+            cancel: crate::solver::CancelToken::default(),
         }
     }
 
