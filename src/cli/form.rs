@@ -807,13 +807,8 @@ pub fn run_forming_in(
     let built = case
         .build()
         .and_then(|built| Readout::new(case, &built).map(|readout| (built, readout)));
-    match built {
-        Ok((built, readout)) => run_built(case, built, readout, folder, (progress, cancel)),
-        Err(e) => {
-            folder.fail(&e);
-            Err(e)
-        }
-    }
+    let (built, readout) = folder.failed_on_error(built)?;
+    run_built(case, built, readout, folder, (progress, cancel))
 }
 
 /// The run of a built case into a prepared folder; a set-up error is
@@ -853,6 +848,7 @@ fn run_built(
         }
     };
     progress.finish();
+    // (A match, not `failed_on_error`: the sink still borrows the folder.)
     let report = match report {
         Ok(report) => report,
         Err(e) => {

@@ -482,13 +482,8 @@ pub fn run_case_in(
     progress: Progress,
     cancel: &CancelToken,
 ) -> Result<RunSummary, String> {
-    match case.build() {
-        Ok(built) => run_built(case, &built, folder, progress, cancel),
-        Err(e) => {
-            folder.fail(&e);
-            Err(e)
-        }
-    }
+    let built = folder.failed_on_error(case.build())?;
+    run_built(case, &built, folder, progress, cancel)
 }
 
 /// The run of a built case into a prepared folder; a set-up error is
@@ -532,6 +527,7 @@ fn run_built(
         ),
     };
     progress.finish();
+    // (A match, not `failed_on_error`: the sink still borrows the folder.)
     let report = match report {
         Ok(report) => report,
         Err(e) => {

@@ -476,6 +476,18 @@ impl RunFolder {
         self.close(ExitStatus::BadInput);
     }
 
+    /// `result`, with its error (a set-up error) written to `status.json`
+    /// as `failed` ([`RunFolder::fail`]).
+    ///
+    /// # Errors
+    /// The error of `result`.
+    pub fn failed_on_error<T>(&mut self, result: Result<T, String>) -> Result<T, String> {
+        if let Err(e) = &result {
+            self.fail(e);
+        }
+        result
+    }
+
     fn close(&mut self, exit: ExitStatus) -> ExitStatus {
         self.status.outputs_complete = self.outputs.missing.is_empty();
         self.status.exit_code = Some(exit.code());

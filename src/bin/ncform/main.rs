@@ -135,16 +135,31 @@ fn cancel_on_signals() -> CancelToken {
     token
 }
 
-/// The exit of a run: its status, and on stderr what is not as asked.
-fn run_exit(status: &RunStatus, exit_status: ExitStatus, reached: &str) -> ExitCode {
+/// The exit of a run: its status, and on stderr what is not as asked,
+/// with the load reached and the load attempted written by `reached` and
+/// `attempted`.
+fn run_exit(
+    status: &RunStatus,
+    exit_status: ExitStatus,
+    reached: impl Fn(f64) -> String,
+    attempted: impl Fn(f64) -> String,
+) -> ExitCode {
     match status {
         RunStatus::Complete => {}
-        RunStatus::Incomplete { reason, .. } => eprintln!(
-            "error: the solve failed in the step from {reached}: {reason}; results up to the last converged state are written and marked incomplete"
+        RunStatus::Incomplete {
+            load_reached,
+            load_attempted,
+            reason,
+        } => eprintln!(
+            "error: the solve failed in the step from {} to {}: {reason}; results up to {} are written and marked incomplete",
+            reached(*load_reached),
+            attempted(*load_attempted),
+            reached(*load_reached)
         ),
-        RunStatus::Interrupted { .. } => {
-            eprintln!("interrupted: results up to {reached} are written and marked interrupted")
-        }
+        RunStatus::Interrupted { load_reached } => eprintln!(
+            "interrupted: results up to {} are written and marked interrupted",
+            reached(*load_reached)
+        ),
     }
     if exit_status == ExitStatus::OutputsMissing {
         eprintln!("error: some outputs could not be written (listed above and in status.json)");
@@ -200,16 +215,12 @@ fn run_forming_case(
         spec.title, summary.wall_seconds
     );
     println!("results in {}", out.display());
-    let reached = match &summary.status {
-        RunStatus::Complete => String::new(),
-        RunStatus::Incomplete {
-            load_reached,
-            load_attempted,
-            ..
-        } => format!("programme fraction {load_reached} to {load_attempted}"),
-        RunStatus::Interrupted { load_reached } => format!("programme fraction {load_reached}"),
-    };
-    Ok(run_exit(&summary.status, summary.exit_status, &reached))
+    Ok(run_exit(
+        &summary.status,
+        summary.exit_status,
+        |load| format!("programme fraction {load}"),
+        |load| load.to_string(),
+    ))
 }
 
 fn run(cli: Cli) -> Result<ExitCode, String> {
@@ -257,16 +268,12 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 spec.title, summary.wall_seconds
             );
             println!("results in {}", out.display());
-            let reached = match &summary.status {
-                RunStatus::Complete => String::new(),
-                RunStatus::Incomplete {
-                    load_reached,
-                    load_attempted,
-                    ..
-                } => format!("d = {load_reached} mm to {load_attempted} mm"),
-                RunStatus::Interrupted { load_reached } => format!("d = {load_reached} mm"),
-            };
-            Ok(run_exit(&summary.status, summary.exit_status, &reached))
+            Ok(run_exit(
+                &summary.status,
+                summary.exit_status,
+                |d| format!("d = {d} mm"),
+                |d| format!("{d} mm"),
+            ))
         }
         Command::Material { command } => match command {
             MaterialCommand::Eval { params } => {
