@@ -689,7 +689,9 @@ pub struct Snapshot<'a> {
 /// # Errors
 /// Only set-up failures (the symbolic factorisation, a symmetric solver
 /// asked for an unsymmetric tangent); a failed solve is a result with
-/// [`RunStatus::Incomplete`].
+/// [`RunStatus::Incomplete`], one stopped by `params.cancel` (before a load
+/// step or a Newton iteration; the step in progress is dropped) a result
+/// with [`RunStatus::Interrupted`].
 pub fn solve_quasi_static(
     model: &mut Model,
     dofs: super::dofs::DofMap,

@@ -239,7 +239,8 @@ struct Buffers {
 /// # Errors
 /// Bad settings or a model that cannot start; a run that fails on the way is
 /// a result with [`RunStatus::Incomplete`] whose records stop at the last
-/// output before the failure.
+/// output before the failure, and one stopped by `params.cancel` a result
+/// with [`RunStatus::Interrupted`] whose last record is the state reached.
 pub fn solve_explicit(
     model: &mut Model,
     dofs: &DofMap,
@@ -570,7 +571,8 @@ fn integrate(
             next_output += usize::from(lands);
             timings.outputs += clock.elapsed().as_secs_f64();
         }
-        if interrupted {
+        // (A stop request at the last output comes too late to stop anything.)
+        if interrupted && next_output < times.len() {
             break RunStatus::Interrupted {
                 load_reached: last_output_load,
             };
