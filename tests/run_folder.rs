@@ -236,6 +236,28 @@ fn the_status_goes_from_running_to_complete() {
     assert_manifest_is_the_folder(&out);
 }
 
+/// docs/cases.md "status.json": a prepared folder given up without a final
+/// status (what a panic unwinding through a run does) says `failed`, never
+/// `running`.
+#[test]
+fn a_folder_given_up_is_marked_failed() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let folder = RunFolder::prepare(&out, "case.toml", "t", &["vtu"]).unwrap();
+    assert_eq!(status(&out)["status"], "running");
+    drop(folder);
+    let st = status(&out);
+    assert_eq!(st["status"], "failed");
+    assert_eq!(st["outputs_complete"], false);
+    assert!(
+        st["error"]
+            .as_str()
+            .unwrap()
+            .contains("without a final status")
+    );
+    assert!(st.get("exit_code").is_none(), "{st}");
+}
+
 /// docs/cases.md "Interrupts and write failures": outputs that cannot be
 /// written (here their paths are folders, made after the folder is
 /// prepared) are listed as missing with the OS error; every other output

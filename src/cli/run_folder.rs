@@ -510,3 +510,33 @@ impl RunFolder {
         }
     }
 }
+
+/// A folder dropped while its status still says `running` — a panic
+/// unwinding through the run (a bug), or a caller that neither finished
+/// nor failed it — is marked `failed` with what was written, so that
+/// `running` only ever means a run going on or killed.
+impl Drop for RunFolder {
+    fn drop(&mut self) {
+        if self.status.status != FolderStatus::Running {
+            return;
+        }
+        let panicking = std::thread::panicking();
+        self.status.status = FolderStatus::Failed;
+        self.status.error = Some(if panicking {
+            "ncform stopped on an internal error (a panic: a bug in ncform; please report it with the case file); the files listed are those written before it".into()
+        } else {
+            "the run ended without a final status".into()
+        });
+        self.status.exit_code = panicking.then_some(101);
+        self.status.outputs_complete = false;
+        self.status.finished = Some(now());
+        self.status.files = self.outputs.files();
+        self.status.missing = self.outputs.missing.clone();
+        if let Err(e) = self.write_status() {
+            eprintln!(
+                "error: output not written: {}: {e}",
+                self.path().join(STATUS_FILE).display()
+            );
+        }
+    }
+}
