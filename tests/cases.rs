@@ -825,6 +825,8 @@ fn a_coarse_45_degree_run_writes_every_output() {
         "title",
         "complete",
         "status",
+        "outputs_missing",
+        "exit_status",
         "solver",
         "units",
         "material",
@@ -841,7 +843,7 @@ fn a_coarse_45_degree_run_writes_every_output() {
     ] {
         assert!(keys.contains(&key), "summary.json lacks `{key}`");
     }
-    assert_eq!(keys.len(), 17, "undocumented keys in {keys:?}");
+    assert_eq!(keys.len(), 19, "undocumented keys in {keys:?}");
     assert_eq!(json["solver"], "quasi-static");
     assert!(json["explicit"].is_null());
     assert_eq!(json["complete"], true);
@@ -1023,8 +1025,8 @@ fn a_run_that_fails_midway_keeps_the_converged_steps() {
 }
 
 /// docs/cases.md "Incomplete runs and exit codes": `ncform run` exits with 0
-/// when complete, 2 when incomplete (results written), 1 on bad input with
-/// `error: …` on stderr.
+/// when complete, 3 when incomplete (results written), 1 on bad input with
+/// `error: …` on stderr (tests/run_folder.rs checks the other codes).
 #[test]
 fn exit_codes() {
     let dir = TempDir::new().unwrap();
@@ -1038,7 +1040,7 @@ fn exit_codes() {
                 &short,
                 "\n[solver]\nmax_iterations = 1\nmin_increment = 0.5\ninitial_increment = 5.0\n",
             ),
-            2,
+            3,
         ),
         (
             "bad.toml",
@@ -1061,7 +1063,7 @@ fn exit_codes() {
         assert_eq!(output.status.code(), Some(code), "{name}: {stderr}");
         match code {
             0 => assert!(stderr.is_empty(), "{stderr}"),
-            2 => {
+            3 => {
                 assert_mentions(&stderr, &["error: the solve failed", "marked incomplete"]);
                 assert!(out.join("summary.json").is_file());
             }

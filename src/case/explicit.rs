@@ -267,6 +267,7 @@ impl ExplicitSettings {
             energy_balance_warning: self.energy_balance_warning,
             threads: self.threads,
             max_increments: self.max_increments,
+            cancel: crate::solver::CancelToken::default(),
         }
     }
 }

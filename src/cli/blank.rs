@@ -10,6 +10,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::io_err;
+use super::run_folder::Outputs;
 use crate::case::forming::{FormingCase, MapView, ToolMotion};
 use crate::case::forming_model::FormingModel;
 use crate::post::contour::{ContourMap, write_contour_png_viewed};
@@ -239,19 +240,18 @@ pub struct OutlineState {
 }
 
 /// `outer_contour.csv` and `outer_contour.png`: every ply's outer contour
-/// at every output state, with the reference blank.
-///
-/// # Errors
-/// A write failure, naming the file.
+/// at every output state, with the reference blank; `labels`: the files'
+/// status line and the stroke's name. Each file is recorded in `files`,
+/// whatever became of the other.
 pub fn write_outer_contours(
     case: &FormingCase,
     built: &FormingModel,
     readout: &Readout,
     states: &[OutlineState],
     out: &Path,
-    header_status: &str,
-    stroke_label: &str,
-) -> Result<(), String> {
+    (header_status, stroke_label): (&str, &str),
+    files: &mut Outputs,
+) {
     let reference = readout.reference_outlines();
     let labels = readout.outline_labels(built);
     let mut header = vec![
@@ -282,7 +282,7 @@ pub fn write_outer_contours(
         .enumerate()
         .map(|(i, p)| format!("{} = \"{}\"", i + 1, p.name))
         .collect();
-    write_csv(
+    let written = write_csv(
         &path,
         &[
             "ncform run: outer contour of each ply, projected on the blank plane (z dropped), in order along the boundary".to_string(),
@@ -294,7 +294,8 @@ pub fn write_outer_contours(
         &header_refs,
         &rows,
     )
-    .map_err(|e| io_err(&path, e))?;
+    .map_err(|e| io_err(&path, e));
+    files.record(&path, written);
     let mut outlines = Vec::new();
     for (p, ply) in built.plies.iter().enumerate() {
         let name = if built.plies.len() > 1 {
@@ -313,17 +314,28 @@ pub fn write_outer_contours(
             });
         }
     }
-    let incomplete = if header_status.contains("INCOMPLETE") {
-        " (INCOMPLETE)"
-    } else {
-        ""
-    };
-    write_outlines_png(
-        &out.join("outer_contour.png"),
+    let incomplete = suffix(header_status);
+    let path = out.join("outer_contour.png");
+    let written = write_outlines_png(
+        &path,
         &format!("outer contour, seen from above{incomplete}"),
         &outlines,
         900,
-    )
+    );
+    files.record(&path, written);
+}
+
+/// The plot-title suffix of a run whose files' status line is
+/// `header_status`: nothing when complete, else ` (INCOMPLETE)` or
+/// ` (INTERRUPTED)`.
+fn suffix(header_status: &str) -> &'static str {
+    if header_status.contains("INTERRUPTED") {
+        " (INTERRUPTED)"
+    } else if header_status.contains("INCOMPLETE") {
+        " (INCOMPLETE)"
+    } else {
+        ""
+    }
 }
 
 /// One history row of `forming.csv`.
@@ -341,19 +353,18 @@ pub struct BlankRow {
 }
 
 /// `forming.csv` and `forming.png`: stroke force, lift of the floating
-/// tools, draw-in and zone means against the stroke.
-///
-/// # Errors
-/// A write failure, naming the file.
+/// tools, draw-in and zone means against the stroke; `labels`: the files'
+/// status line and the stroke's name. Each file is recorded in `files`,
+/// whatever became of the other.
 pub fn write_forming_history(
     case: &FormingCase,
     built: &FormingModel,
     readout: &Readout,
     rows: &[BlankRow],
     out: &Path,
-    header_status: &str,
-    stroke_label: &str,
-) -> Result<(), String> {
+    (header_status, stroke_label): (&str, &str),
+    files: &mut Outputs,
+) {
     let floating: Vec<&str> = readout
         .floating_tools
         .iter()
@@ -431,13 +442,10 @@ pub fn write_forming_history(
         comments.push(format!("zones: {}", zones.join("; ")));
     }
     comments.push("units: mm, N; angles in degrees".into());
-    write_csv(&path, &comments, &header_refs, &data).map_err(|e| io_err(&path, e))?;
+    let written = write_csv(&path, &comments, &header_refs, &data).map_err(|e| io_err(&path, e));
+    files.record(&path, written);
 
-    let incomplete = if header_status.contains("INCOMPLETE") {
-        " (INCOMPLETE)"
-    } else {
-        ""
-    };
+    let incomplete = suffix(header_status);
     let x_label = format!("{stroke_label} [mm]");
     let curve = |label: String, f: &dyn Fn(&BlankRow) -> f64| Series {
         label,
@@ -492,12 +500,14 @@ pub fn write_forming_history(
     }
     let cols = 2.min(panels.len());
     let grid = panels.len().div_ceil(cols);
-    write_panels(
-        &out.join("forming.png"),
+    let path = out.join("forming.png");
+    let written = write_panels(
+        &path,
         &panels,
         (grid, cols),
         (700 * cols as u32, 520 * grid as u32),
-    )
+    );
+    files.record(&path, written);
 }
 
 /// The per-element strain measures of the 2D image-correlation view, as
@@ -542,24 +552,22 @@ pub fn dic_measures(built: &FormingModel, p: usize, u: &[f64]) -> Vec<Option<Str
     strain_measures(&ply.membrane, &projected)
 }
 
-/// `maps/<ply>_NNNN.png` (γ, E22, E⊥ of the formed ply) and
-/// `maps/<ply>-dic_NNNN.png` (the same recomputed on the projection), both
-/// as `case.camera` sees the ply.
-///
-/// # Errors
-/// A drawing or write failure, naming the file.
+/// `maps/<ply>_NNNN.png` (γ, E22, E⊥ of the formed ply),
+/// `maps/<ply>-dic_NNNN.png` (the same recomputed on the projection) and
+/// `maps/<ply>-modes_NNNN.png` (the deformation modes) of ply `p` of the
+/// case `(case, built, p)`, as `case.camera` sees the ply; each recorded
+/// in `files`, whatever became of the others.
 #[allow(clippy::too_many_arguments)]
 pub fn write_maps(
-    case: &FormingCase,
-    built: &FormingModel,
-    p: usize,
+    (case, built, p): (&FormingCase, &FormingModel, usize),
     u: &[f64],
     fields: &[ElementFields],
     dic: &[Option<StrainMeasures>],
     modes: &[u8],
     paths: (&Path, &Path, &Path),
     caption: &str,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     let ply = &built.plies[p];
     let offset = ply.node_offset;
     let points: Vec<[f64; 2]> = ply
@@ -623,7 +631,8 @@ pub fn write_maps(
                 range: None,
             })
             .collect();
-        write_contour_png_viewed(path, &maps, (2100, 720), case.camera)?;
+        let written = write_contour_png_viewed(path, &maps, (2100, 720), case.camera);
+        files.record(path, written);
     }
     let mode_values: Vec<f64> = order.iter().map(|&e| f64::from(modes[e])).collect();
     let map = ContourMap {
@@ -634,5 +643,6 @@ pub fn write_maps(
         label: "mode: 0 none, 1 I11<1 I8≤1, 2 I11<1 I8>1, 3 I11≥1 I8>1, 4 I11≥1 I8≤1".into(),
         range: Some((0.0, 4.0)),
     };
-    write_contour_png_viewed(paths.2, &[map], (900, 720), case.camera)
+    let written = write_contour_png_viewed(paths.2, &[map], (900, 720), case.camera);
+    files.record(paths.2, written);
 }

@@ -3,9 +3,10 @@
 
 use std::path::Path;
 
+use super::run_folder::Outputs;
 use crate::post::csv::write_csv;
 use crate::post::plot::{Panel, Series, write_panels};
-use crate::solver::ExplicitRecord;
+use crate::solver::{ExplicitRecord, RunStatus};
 
 /// What the history is plotted against.
 pub(crate) struct EnergyAxis {
@@ -19,20 +20,19 @@ pub(crate) struct EnergyAxis {
 }
 
 /// Writes `energy.csv` (with `preamble` as its comment lines) and
-/// `energy.png` into `out`. With `with_contact`, the columns of contact,
-/// load work and friction are added (forming); the others are those of
-/// every explicit run.
-///
-/// # Errors
-/// A file that cannot be written, named.
+/// `energy.png` into `out` for a run that ended with `status`, each
+/// recorded in `files` (a failure of one does not stop the other). With
+/// `with_contact`, the columns of contact, load work and friction are
+/// added (forming); the others are those of every explicit run.
 pub(crate) fn write_energy(
     out: &Path,
     preamble: &[String],
     records: &[ExplicitRecord],
-    complete: bool,
+    status: &RunStatus,
     axis: &EnergyAxis,
     with_contact: bool,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     let path = out.join("energy.csv");
     let mut header = vec![
         "time [s]",
@@ -69,12 +69,14 @@ pub(crate) fn write_energy(
             row
         })
         .collect();
-    write_csv(&path, preamble, &header, &rows).map_err(|e| format!("{}: {e}", path.display()))?;
+    let written =
+        write_csv(&path, preamble, &header, &rows).map_err(|e| format!("{}: {e}", path.display()));
+    files.record(&path, written);
     let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
         label: label.to_string(),
         points: records.iter().map(|r| ((axis.value)(r), f(r))).collect(),
     };
-    let suffix = if complete { "" } else { " (INCOMPLETE)" };
+    let suffix = super::plot_suffix(status);
     let mut energies = vec![
         series("internal", |r| r.energies.internal),
         series("external work", |r| r.energies.external_work),
@@ -87,8 +89,9 @@ pub(crate) fn write_energy(
             series("friction", |r| r.energies.friction),
         ]);
     }
-    write_panels(
-        &out.join("energy.png"),
+    let path = out.join("energy.png");
+    let written = write_panels(
+        &path,
         &[
             Panel {
                 title: format!("energies{suffix}"),
@@ -114,5 +117,6 @@ pub(crate) fn write_energy(
         ],
         (1, 3),
         (1800, 550),
-    )
+    );
+    files.record(&path, written);
 }

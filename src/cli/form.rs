@@ -16,7 +16,7 @@
 //! A solve that fails keeps everything up to the last converged step (or
 //! output) and marks it incomplete.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
@@ -27,6 +27,7 @@ use super::blank::{
 };
 use super::io_err;
 use super::run::Progress;
+use super::run_folder::{ExitStatus, MissingOutput, Outputs, RunFolder};
 use crate::case::SolverKind;
 use crate::case::forming::{FormingCase, ToolMotion};
 use crate::case::forming_model::FormingModel;
@@ -37,7 +38,8 @@ use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vt
 use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
 use crate::solver::newton::solve_quasi_static;
 use crate::solver::{
-    DofMap, ExplicitRecord, ExplicitState, RunStatus, Snapshot, SolverTimings, solve_explicit,
+    CancelToken, DofMap, ExplicitRecord, ExplicitState, RunStatus, Snapshot, SolverTimings,
+    solve_explicit,
 };
 
 const UNITS: &str = "mm, N, MPa, tonne/mm^3, s; angles in degrees";
@@ -115,8 +117,13 @@ pub struct FormingSummary {
     pub title: String,
     /// `true` when the programme's end was reached.
     pub complete: bool,
-    /// Completion (reason when incomplete).
+    /// Completion (reason when incomplete, load reached when interrupted).
     pub status: RunStatus,
+    /// The outputs written before this summary that could not be written
+    /// (`status.json` has the final list).
+    pub outputs_missing: Vec<MissingOutput>,
+    /// How the command ends (`docs/cases.md`, "Exit codes").
+    pub exit_status: ExitStatus,
     /// The solver.
     pub solver: SolverKind,
     /// Units of every number here.
@@ -224,11 +231,11 @@ pub struct ExplicitFigures {
 struct Sink<'a> {
     case: &'a FormingCase,
     built: &'a FormingModel,
-    out: &'a Path,
+    out: PathBuf,
+    files: &'a mut Outputs,
     history: Vec<FormingRow>,
     pvd: Vec<PvdEntry>,
     written_states: usize,
-    io_error: Option<String>,
     seconds: f64,
     readout: Readout,
     outline_states: Vec<OutlineState>,
@@ -371,14 +378,15 @@ impl Sink<'_> {
         for (t, tool) in self.built.tools.iter().enumerate() {
             let name = format!("tool-{}_{index:04}.vtu", file_stem(&tool.spec.name));
             let path = self.out.join("vtu").join(&name);
-            if let Err(e) = write_tool_vtu(&path, self.case, tool, snapshot.u[tool.dof], load) {
-                self.io_error.get_or_insert(e);
+            let written = write_tool_vtu(&path, self.case, tool, snapshot.u[tool.dof], load);
+            // The series lists only the states that are there.
+            if self.files.record(&path, written) {
+                self.pvd.push(PvdEntry {
+                    time: load,
+                    file: format!("vtu/{name}"),
+                    part: plies + t,
+                });
             }
-            self.pvd.push(PvdEntry {
-                time: load,
-                file: format!("vtu/{name}"),
-                part: plies + t,
-            });
         }
         let tools = self.built.tools.len();
         for (p, ply) in self.built.plies.iter().enumerate() {
@@ -404,27 +412,29 @@ impl Sink<'_> {
                 snapshot,
                 load,
                 &caption,
+                self.files,
             );
-            match written {
-                Ok(areas) => self.mode_states.push(ModeAreas {
+            if let Some(areas) = written.areas {
+                self.mode_states.push(ModeAreas {
                     stroke: row.stroke,
                     ply: ply.name.clone(),
                     areas,
-                }),
-                Err(e) => {
-                    self.io_error.get_or_insert(e);
-                }
+                });
             }
-            self.pvd.push(PvdEntry {
-                time: load,
-                file: format!("vtu/{name}"),
-                part: p,
-            });
-            self.pvd.push(PvdEntry {
-                time: load,
-                file: format!("vtu/{dic_name}"),
-                part: plies + tools + p,
-            });
+            if written.ply {
+                self.pvd.push(PvdEntry {
+                    time: load,
+                    file: format!("vtu/{name}"),
+                    part: p,
+                });
+            }
+            if written.projection {
+                self.pvd.push(PvdEntry {
+                    time: load,
+                    file: format!("vtu/{dic_name}"),
+                    part: plies + tools + p,
+                });
+            }
         }
     }
 }
@@ -545,10 +555,22 @@ fn contact_fields(built: &FormingModel, p: usize, model: &crate::model::Model) -
     c
 }
 
+/// What [`write_ply_state`] wrote.
+struct PlyState {
+    /// The reference area of each deformation mode (`None` when the
+    /// state's fields could not be evaluated).
+    areas: Option<[f64; crate::post::forming::MODES]>,
+    /// The ply's VTU is written.
+    ply: bool,
+    /// The VTU of its projection is written.
+    projection: bool,
+}
+
 /// One ply at an output state: its VTU (with the image-correlation fields
 /// beside the true ones), the VTU of its projection on the blank plane, and
-/// its maps (`paths`: ply VTU, projection VTU, the three map PNGs);
-/// returns the reference area of each deformation mode.
+/// its maps (`paths`: ply VTU, projection VTU, the three map PNGs), each
+/// recorded in `files` whatever became of the others.
+#[allow(clippy::too_many_arguments)]
 fn write_ply_state(
     paths: (&Path, &Path, (&Path, &Path, &Path)),
     case: &FormingCase,
@@ -557,7 +579,8 @@ fn write_ply_state(
     snapshot: &Snapshot,
     load: f64,
     caption: &str,
-) -> Result<[f64; crate::post::forming::MODES], String> {
+    files: &mut Outputs,
+) -> PlyState {
     let (path, dic_path, map_paths) = paths;
     let ply = &built.plies[p];
     let u = snapshot.u;
@@ -570,13 +593,23 @@ fn write_ply_state(
             [u[3 * g], u[3 * g + 1], u[3 * g + 2]]
         })
         .collect();
-    let fields = element_fields(&ply.membrane, u).map_err(|(e, err)| {
-        format!(
-            "ply \"{}\": element {}: {err}",
-            ply.name,
-            ply.mesh.element_label(e)
-        )
-    })?;
+    let fields = match element_fields(&ply.membrane, u) {
+        Ok(fields) => fields,
+        Err((e, err)) => {
+            files.record_missing(
+                &format!(
+                    "the VTU files and maps of ply \"{}\" at programme fraction {load}",
+                    ply.name
+                ),
+                format!("element {}: {err}", ply.mesh.element_label(e)),
+            );
+            return PlyState {
+                areas: None,
+                ply: false,
+                projection: false,
+            };
+        }
+    };
     let dic = dic_measures(built, p, u);
     let dic_columns = DicColumns::new(&dic);
     let dic_fields = || {
@@ -679,7 +712,7 @@ fn write_ply_state(
             "deformation_mode (to 0.1 %): 0 near the reference state, 1 I11<1 & I8<=1 (mixed-mode 1), 2 I11<1 & I8>1 (mixed-mode 2), 3 I11>=1 & I8>1, 4 I11>=1 & I8<=1 (docs/forming.md)".into(),
         ],
     };
-    write_vtu(path, &piece).map_err(|e| io_err(path, e))?;
+    let ply_written = files.record(path, write_vtu(path, &piece).map_err(|e| io_err(path, e)));
     let projected: Vec<[f64; 3]> = ply
         .mesh
         .nodes
@@ -705,36 +738,101 @@ fn write_ply_state(
             dic_note.into(),
         ],
     };
-    write_vtu(dic_path, &dic_piece).map_err(|e| io_err(dic_path, e))?;
-    write_maps(case, built, p, u, &fields, &dic, &modes, map_paths, caption)?;
-    Ok(crate::post::forming::mode_areas(&modes, &areas))
+    let projection = files.record(
+        dic_path,
+        write_vtu(dic_path, &dic_piece).map_err(|e| io_err(dic_path, e)),
+    );
+    write_maps(
+        (case, built, p),
+        u,
+        &fields,
+        &dic,
+        &modes,
+        map_paths,
+        caption,
+        files,
+    );
+    PlyState {
+        areas: Some(crate::post::forming::mode_areas(&modes, &areas)),
+        ply: ply_written,
+        projection,
+    }
 }
 
-/// Runs a forming case and writes its outputs into `out`.
+/// Runs a forming case and writes its outputs into the folder `out`,
+/// prepared as a run folder after the set-up ([`RunFolder::prepare`]: an
+/// earlier run moved aside, a foreign folder refused).
 ///
 /// # Errors
-/// Set-up failures (case, meshes, tools) and I/O errors, naming the file.
+/// Set-up failures (case, meshes, tools, output folder), naming the file;
+/// nothing is written then, or `status.json` says `failed` when the folder
+/// was prepared.
 pub fn run_forming(
     case: &FormingCase,
     out: &Path,
-    mut progress: Progress,
+    progress: Progress,
+) -> Result<FormingSummary, String> {
+    run_forming_with(case, out, progress, &CancelToken::default())
+}
+
+/// As [`run_forming`], stopping at the solver's next safe point once
+/// `cancel` is cancelled (the results up to there are written and marked
+/// interrupted).
+///
+/// # Errors
+/// As [`run_forming`].
+pub fn run_forming_with(
+    case: &FormingCase,
+    out: &Path,
+    progress: Progress,
+    cancel: &CancelToken,
+) -> Result<FormingSummary, String> {
+    let built = case.build()?;
+    let readout = Readout::new(case, &built)?;
+    let mut folder = RunFolder::prepare(out, &case.source, &case.title, &["vtu", "maps"])?;
+    run_built(case, built, readout, &mut folder, (progress, cancel))
+}
+
+/// As [`run_forming_with`] into a folder already prepared (with `vtu/` and
+/// `maps/`; a test can then put things in the way of the outputs).
+///
+/// # Errors
+/// As [`run_forming`]; `status.json` then says `failed`.
+pub fn run_forming_in(
+    case: &FormingCase,
+    folder: &mut RunFolder,
+    progress: Progress,
+    cancel: &CancelToken,
+) -> Result<FormingSummary, String> {
+    let built = case
+        .build()
+        .and_then(|built| Readout::new(case, &built).map(|readout| (built, readout)));
+    let (built, readout) = folder.failed_on_error(built)?;
+    run_built(case, built, readout, folder, (progress, cancel))
+}
+
+/// The run of a built case into a prepared folder; a set-up error is
+/// written to `status.json` as `failed`.
+fn run_built(
+    case: &FormingCase,
+    mut built: FormingModel,
+    readout: Readout,
+    folder: &mut RunFolder,
+    (mut progress, cancel): (Progress, &CancelToken),
 ) -> Result<FormingSummary, String> {
     let wall = Instant::now();
-    let mut built = case.build()?;
-    for dir in ["vtu", "maps"] {
-        std::fs::create_dir_all(out.join(dir)).map_err(|e| io_err(&out.join(dir), e))?;
-    }
-    let readout = Readout::new(case, &built)?;
+    let out = folder.path().to_path_buf();
+    let out = out.as_path();
     let dofs = built.dofs();
     let mut model = std::mem::replace(&mut built.model, crate::model::Model::new(0));
     let mut sink = Sink {
         case,
         built: &built,
-        out,
+        out: out.to_path_buf(),
+        files: folder.outputs_mut(),
         history: Vec::new(),
         pvd: Vec::new(),
         written_states: 0,
-        io_error: None,
         seconds: 0.0,
         readout,
         outline_states: Vec::new(),
@@ -743,25 +841,34 @@ pub fn run_forming(
     };
     let report = match case.solver_kind {
         SolverKind::QuasiStatic => {
-            run_quasi_static(case, &mut model, dofs, &mut sink, &mut progress)?
+            run_quasi_static(case, &mut model, dofs, &mut sink, &mut progress, cancel)
         }
-        SolverKind::Explicit => run_explicit(case, &mut model, &dofs, &mut sink, &mut progress)?,
+        SolverKind::Explicit => {
+            run_explicit(case, &mut model, &dofs, &mut sink, &mut progress, cancel)
+        }
     };
     progress.finish();
+    // (A match, not `failed_on_error`: the sink still borrows the folder.)
+    let report = match report {
+        Ok(report) => report,
+        Err(e) => {
+            folder.fail(&e);
+            return Err(e);
+        }
+    };
     let output_clock = Instant::now();
-    if let Some(e) = sink.io_error.take() {
-        return Err(e);
-    }
-    write_pvd(
-        &out.join("forming.pvd"),
+    let path = out.join("forming.pvd");
+    let written = write_pvd(
+        &path,
         &sink.pvd,
         &[
             format!("ncform: {} ({})", case.title, case.source),
             "time = programme fraction (0 to 1); parts: the plies, then the tools, then each ply projected on the blank plane (2D image-correlation view); units: mm, N, MPa".into(),
         ],
     )
-    .map_err(|e| io_err(&out.join("forming.pvd"), e))?;
-    write_history(case, &built, out, &sink.history, &report.status)?;
+    .map_err(|e| io_err(&path, e));
+    sink.files.record(&path, written);
+    write_history(case, &built, out, &sink.history, &report.status, sink.files);
     let header_status = status_line(&report.status);
     let stroke_label = sink.readout.stroke_tool.map_or_else(
         || "programme fraction".to_string(),
@@ -773,9 +880,9 @@ pub fn run_forming(
         &sink.readout,
         &sink.outline_states,
         out,
-        &header_status,
-        &stroke_label,
-    )?;
+        (&header_status, &stroke_label),
+        sink.files,
+    );
     let blank_rows: Vec<BlankRow> = sink
         .history
         .iter()
@@ -793,11 +900,11 @@ pub fn run_forming(
         &sink.readout,
         &blank_rows,
         out,
-        &header_status,
-        &stroke_label,
-    )?;
+        (&header_status, &stroke_label),
+        sink.files,
+    );
     if let Some(records) = &report.records {
-        write_energy(case, out, records, &report.status)?;
+        write_energy(case, out, records, &report.status, sink.files);
     }
     sink.seconds += output_clock.elapsed().as_secs_f64();
     if let Some(figures) = &report.explicit {
@@ -805,10 +912,13 @@ pub fn run_forming(
             eprintln!("warning: {warning}");
         }
     }
-    let summary = FormingSummary {
+    let missing = sink.files.missing().to_vec();
+    let mut summary = FormingSummary {
         case: case.source.clone(),
         title: case.title.clone(),
         complete: report.status == RunStatus::Complete,
+        exit_status: ExitStatus::of_run(&report.status, missing.len()),
+        outputs_missing: missing,
         status: report.status.clone(),
         solver: case.solver_kind,
         units: UNITS,
@@ -890,9 +1000,14 @@ pub fn run_forming(
         },
         history: std::mem::take(&mut sink.history),
     };
+    drop(sink);
     let path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| io_err(&path, e))?;
-    std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e))?;
+    let written = serde_json::to_string_pretty(&summary)
+        .map_err(|e| io_err(&path, e))
+        .and_then(|text| std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e)));
+    folder.outputs_mut().record(&path, written);
+    summary.exit_status = folder.finish(&report.status);
+    summary.outputs_missing = folder.outputs().missing().to_vec();
     Ok(summary)
 }
 
@@ -916,12 +1031,17 @@ fn run_quasi_static(
     dofs: DofMap,
     sink: &mut Sink,
     progress: &mut Progress,
+    cancel: &CancelToken,
 ) -> Result<Report, String> {
     let mut u = vec![0.0; dofs.total];
+    let params = crate::solver::NewtonParameters {
+        cancel: *cancel,
+        ..case.solver.clone()
+    };
     let result = solve_quasi_static(
         model,
         dofs,
-        &case.solver,
+        &params,
         1.0,
         &case.states,
         &mut u,
@@ -977,8 +1097,10 @@ fn run_explicit(
     dofs: &DofMap,
     sink: &mut Sink,
     progress: &mut Progress,
+    cancel: &CancelToken,
 ) -> Result<Report, String> {
-    let params = case.explicit.parameters();
+    let mut params = case.explicit.parameters();
+    params.cancel = *cancel;
     let rows = case.history_rows;
     let mut fractions: Vec<f64> = (1..=rows).map(|k| k as f64 / rows as f64).collect();
     fractions.extend_from_slice(&case.states);
@@ -1048,7 +1170,8 @@ fn write_history(
     out: &Path,
     history: &[FormingRow],
     status: &RunStatus,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     let mut header: Vec<String> = vec!["programme fraction [-]".into(), "time [s]".into()];
     for t in &built.tools {
         header.push(format!("{} displacement [mm]", t.spec.name));
@@ -1115,7 +1238,7 @@ fn write_history(
         .collect();
     let path = out.join("history.csv");
     let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
-    write_csv(
+    let written = write_csv(
         &path,
         &[
             "ncform run: forming history (tools, boundary reactions, contact)".to_string(),
@@ -1127,12 +1250,9 @@ fn write_history(
         &header_refs,
         &rows,
     )
-    .map_err(|e| io_err(&path, e))?;
-    let suffix = if matches!(status, RunStatus::Complete) {
-        ""
-    } else {
-        " (INCOMPLETE)"
-    };
+    .map_err(|e| io_err(&path, e));
+    files.record(&path, written);
+    let suffix = super::plot_suffix(status);
     let mut panels = Vec::new();
     for (i, t) in built.tools.iter().enumerate() {
         panels.push(Panel {
@@ -1167,16 +1287,18 @@ fn write_history(
         });
     }
     if panels.is_empty() {
-        return Ok(());
+        return;
     }
     let cols = panels.len().min(3);
     let rows = panels.len().div_ceil(cols);
-    write_panels(
-        &out.join("reactions.png"),
+    let path = out.join("reactions.png");
+    let written = write_panels(
+        &path,
         &panels,
         (rows, cols),
         (600 * cols as u32, 500 * rows as u32),
-    )
+    );
+    files.record(&path, written);
 }
 
 /// `energy.csv` and `energy.png` of an explicit run.
@@ -1185,7 +1307,8 @@ fn write_energy(
     out: &Path,
     records: &[ExplicitRecord],
     status: &RunStatus,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     super::energy::write_energy(
         out,
         &[
@@ -1196,12 +1319,13 @@ fn write_energy(
             format!("units: {UNITS}; energies in N*mm (= mJ)"),
         ],
         records,
-        matches!(status, RunStatus::Complete),
+        status,
         &super::energy::EnergyAxis {
             header: "programme fraction [-]",
             label: "time [s]",
             value: |r| r.time,
         },
         true,
-    )
+        files,
+    );
 }

@@ -8,6 +8,7 @@ pub mod material_check;
 pub mod material_curves;
 pub mod material_eval;
 pub mod run;
+pub mod run_folder;
 
 use std::path::Path;
 
@@ -19,9 +20,10 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
     format!("{}: {e}", path.display())
 }
 
-/// `status: complete`, or where an incomplete run stopped and why, with
-/// the load reached and the load attempted written by `reached` and
-/// `attempted` (the output files' header line).
+/// `status: complete`, or where an incomplete run stopped and why, or
+/// where an interrupted one stopped, with the load reached and the load
+/// attempted written by `reached` and `attempted` (the output files'
+/// header line).
 fn status_line(
     status: &RunStatus,
     reached: impl Fn(f64) -> String,
@@ -38,6 +40,20 @@ fn status_line(
             reached(*load_reached),
             attempted(*load_attempted)
         ),
+        RunStatus::Interrupted { load_reached } => format!(
+            "status: INTERRUPTED - stopped on request (SIGINT/SIGTERM) at {}",
+            reached(*load_reached)
+        ),
+    }
+}
+
+/// The suffix of plot titles: nothing for a complete run, else
+/// ` (INCOMPLETE)` or ` (INTERRUPTED)`.
+fn plot_suffix(status: &RunStatus) -> &'static str {
+    match status {
+        RunStatus::Complete => "",
+        RunStatus::Incomplete { .. } => " (INCOMPLETE)",
+        RunStatus::Interrupted { .. } => " (INTERRUPTED)",
     }
 }
 

@@ -21,6 +21,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use super::io_err;
+use super::run_folder::{ExitStatus, MissingOutput, Outputs, RunFolder};
 
 use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
 use crate::model::Model;
@@ -32,8 +33,8 @@ use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vt
 use crate::solver::explicit::{Energies, ExplicitTimings, MassSummary};
 use crate::solver::newton::solve_quasi_static;
 use crate::solver::{
-    DofMap, ExplicitRecord, ExplicitState, QuasiStaticResult, RunStatus, SolverTimings,
-    solve_explicit,
+    CancelToken, DofMap, ExplicitRecord, ExplicitState, QuasiStaticResult, RunStatus,
+    SolverTimings, solve_explicit,
 };
 
 /// Displacements whose forces the summary always reports \[mm\].
@@ -72,8 +73,14 @@ pub struct RunSummary {
     pub title: String,
     /// `true` when the final displacement was reached.
     pub complete: bool,
-    /// Completion details (reason when incomplete).
+    /// Completion details (reason when incomplete, load reached when
+    /// interrupted).
     pub status: RunStatus,
+    /// The outputs written before this summary that could not be written
+    /// (`status.json` has the final list).
+    pub outputs_missing: Vec<MissingOutput>,
+    /// How the command ends (`docs/cases.md`, "Exit codes").
+    pub exit_status: ExitStatus,
     /// The solver that ran.
     pub solver: SolverKind,
     /// Units of every number here.
@@ -303,25 +310,25 @@ struct Snapshot {
 struct OutputSink<'a> {
     case: &'a OatCase,
     built: &'a OatModel,
-    out: &'a Path,
+    out: PathBuf,
+    files: &'a mut Outputs,
     history: Vec<HistoryRow>,
     pvd: Vec<PvdEntry>,
     snapshot: Option<Snapshot>,
-    io_error: Option<String>,
     seconds: f64,
     tolerance: f64,
 }
 
 impl<'a> OutputSink<'a> {
-    fn new(case: &'a OatCase, built: &'a OatModel, out: &'a Path) -> Self {
+    fn new(case: &'a OatCase, built: &'a OatModel, files: &'a mut Outputs) -> Self {
         Self {
             case,
             built,
-            out,
+            out: files.root().to_path_buf(),
+            files,
             history: Vec::new(),
             pvd: Vec::new(),
             snapshot: None,
-            io_error: None,
             seconds: 0.0,
             tolerance: 1e-9 * case.displacement,
         }
@@ -335,7 +342,10 @@ impl<'a> OutputSink<'a> {
         let fields = match element_fields(&built.model, u) {
             Ok(f) => f,
             Err((e, err)) => {
-                self.io_error.get_or_insert(format!("element {e}: {err}"));
+                self.files.record_missing(
+                    &format!("the state at d = {load} mm (history row, VTU, contours)"),
+                    format!("element {e}: {err}"),
+                );
                 return;
             }
         };
@@ -360,14 +370,15 @@ impl<'a> OutputSink<'a> {
         {
             let name = format!("oat_d{load:07.3}.vtu");
             let path = self.out.join("vtu").join(&name);
-            if let Err(e) = write_state_vtu(&path, case, built, u, &fields, load) {
-                self.io_error.get_or_insert(e);
+            let written = write_state_vtu(&path, case, built, u, &fields, load);
+            // The series lists only the states that are there.
+            if self.files.record(&path, written) {
+                self.pvd.push(PvdEntry {
+                    time: load,
+                    file: format!("vtu/{name}"),
+                    part: 0,
+                });
             }
-            self.pvd.push(PvdEntry {
-                time: load,
-                file: format!("vtu/{name}"),
-                part: 0,
-            });
         }
         if load <= case.contour_displacement + self.tolerance {
             self.snapshot = Some(Snapshot {
@@ -379,28 +390,30 @@ impl<'a> OutputSink<'a> {
         self.seconds += start.elapsed().as_secs_f64();
     }
 
-    /// Writes the PVD, the histories and the contour maps.
-    fn finish(&mut self, status: &RunStatus, solver: SolverKind) -> Result<(), String> {
-        if let Some(e) = self.io_error.take() {
-            return Err(e);
-        }
+    /// Writes the PVD, the histories and the contour maps, each attempted
+    /// whatever became of the others.
+    fn finish(&mut self, status: &RunStatus, solver: SolverKind) {
         let start = Instant::now();
-        let (case, out) = (self.case, self.out);
-        write_pvd(
-            &out.join("oat.pvd"),
+        let case = self.case;
+        let out = self.out.clone();
+        let path = out.join("oat.pvd");
+        let written = write_pvd(
+            &path,
             &self.pvd,
             &[
                 format!("ncform: {} ({})", case.title, case.source),
                 "time = clamp displacement [mm]; units: mm, N, MPa".into(),
             ],
         )
-        .map_err(|e| io_err(&out.join("oat.pvd"), e))?;
-        write_histories(case, out, &self.history, status, solver)?;
+        .map_err(|e| io_err(&path, e));
+        self.files.record(&path, written);
+        write_histories(case, &out, &self.history, status, solver, self.files);
         if let Some(snap) = &self.snapshot {
-            write_contours(self.built, out, snap)?;
+            let path = out.join("contours.png");
+            let written = write_contours(self.built, &path, snap);
+            self.files.record(&path, written);
         }
         self.seconds += start.elapsed().as_secs_f64();
-        Ok(())
     }
 
     /// Forces at the reported displacements that were reached.
@@ -428,43 +441,116 @@ struct SolveReport {
     explicit: Option<ExplicitSummary>,
 }
 
-/// Runs a case and writes its outputs into `out`. Returns the summary; a
+/// Runs a case and writes its outputs into the folder `out`, prepared
+/// as a run folder after the set-up ([`RunFolder::prepare`]: an earlier
+/// run moved aside, a foreign folder refused). Returns the summary; a
 /// solve that stopped early is `complete = false` with its reason.
 ///
 /// # Errors
-/// Set-up failures (case, mesh) and I/O errors, as messages naming the file.
-pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<RunSummary, String> {
-    let wall = Instant::now();
+/// Set-up failures (case, mesh, output folder) as messages naming the
+/// file; nothing is written then, or `status.json` says `failed` when the
+/// folder was prepared.
+pub fn run_case(case: &OatCase, out: &Path, progress: Progress) -> Result<RunSummary, String> {
+    run_case_with(case, out, progress, &CancelToken::default())
+}
+
+/// As [`run_case`], stopping at the solver's next safe point once `cancel`
+/// is cancelled (the results up to there are written and marked
+/// interrupted).
+///
+/// # Errors
+/// As [`run_case`].
+pub fn run_case_with(
+    case: &OatCase,
+    out: &Path,
+    progress: Progress,
+    cancel: &CancelToken,
+) -> Result<RunSummary, String> {
     let built = case.build()?;
-    std::fs::create_dir_all(out.join("vtu")).map_err(|e| io_err(out, e))?;
-    let dofs = OatCase::dofs(&built);
-    let mut model = case.solver_model(&built);
+    let mut folder = RunFolder::prepare(out, &case.source, &case.title, &["vtu"])?;
+    run_built(case, &built, &mut folder, progress, cancel)
+}
+
+/// As [`run_case_with`] into a folder already prepared (a test can then
+/// put things in the way of the outputs).
+///
+/// # Errors
+/// As [`run_case`]; `status.json` then says `failed`.
+pub fn run_case_in(
+    case: &OatCase,
+    folder: &mut RunFolder,
+    progress: Progress,
+    cancel: &CancelToken,
+) -> Result<RunSummary, String> {
+    let built = folder.failed_on_error(case.build())?;
+    run_built(case, &built, folder, progress, cancel)
+}
+
+/// The run of a built case into a prepared folder; a set-up error is
+/// written to `status.json` as `failed`.
+fn run_built(
+    case: &OatCase,
+    built: &OatModel,
+    folder: &mut RunFolder,
+    mut progress: Progress,
+    cancel: &CancelToken,
+) -> Result<RunSummary, String> {
+    let wall = Instant::now();
+    let dofs = OatCase::dofs(built);
+    let mut model = case.solver_model(built);
     let mut stops: Vec<f64> = case.output_displacements.clone();
     stops.extend(
         REPORTED_DISPLACEMENTS
             .iter()
             .filter(|d| **d <= case.displacement),
     );
-    let mut sink = OutputSink::new(case, &built, out);
+    let out = folder.path().to_path_buf();
+    let mut sink = OutputSink::new(case, built, folder.outputs_mut());
     let report = match case.solver_kind {
-        SolverKind::QuasiStatic => {
-            run_quasi_static(case, &mut model, dofs, &stops, &mut sink, &mut progress)?
-        }
-        SolverKind::Explicit => {
-            run_explicit(case, &mut model, &dofs, &stops, &mut sink, &mut progress)?
-        }
+        SolverKind::QuasiStatic => run_quasi_static(
+            case,
+            &mut model,
+            dofs,
+            &stops,
+            &mut sink,
+            &mut progress,
+            cancel,
+        ),
+        SolverKind::Explicit => run_explicit(
+            case,
+            &mut model,
+            &dofs,
+            &stops,
+            &mut sink,
+            &mut progress,
+            cancel,
+        ),
     };
     progress.finish();
-    sink.finish(&report.status, case.solver_kind)?;
+    // (A match, not `failed_on_error`: the sink still borrows the folder.)
+    let report = match report {
+        Ok(report) => report,
+        Err(e) => {
+            folder.fail(&e);
+            return Err(e);
+        }
+    };
+    sink.finish(&report.status, case.solver_kind);
     if let Some(explicit) = &report.explicit {
         for warning in &explicit.warnings {
             eprintln!("warning: {warning}");
         }
     }
-    let summary = RunSummary {
+    let forces = sink.reported_forces();
+    let steps = sink.history.len();
+    let output_seconds = sink.seconds;
+    let history = std::mem::take(&mut sink.history);
+    let mut summary = RunSummary {
         case: case.source.clone(),
         title: case.title.clone(),
         complete: report.status == RunStatus::Complete,
+        outputs_missing: folder.outputs().missing().to_vec(),
+        exit_status: ExitStatus::of_run(&report.status, folder.outputs().missing().len()),
         status: report.status.clone(),
         solver: case.solver_kind,
         units: UNITS,
@@ -477,19 +563,23 @@ pub fn run_case(case: &OatCase, out: &Path, mut progress: Progress) -> Result<Ru
             edge_deviation_deg: built.edge_deviation_deg,
             mdz_elements: built.mdz.len(),
         },
-        forces: sink.reported_forces(),
-        steps: sink.history.len(),
+        forces,
+        steps,
         newton_iterations: report.newton_iterations,
         factorisations: report.factorisations,
         timings: report.timings,
         explicit: report.explicit,
-        output_seconds: sink.seconds,
+        output_seconds,
         wall_seconds: wall.elapsed().as_secs_f64(),
-        history: std::mem::take(&mut sink.history),
+        history,
     };
     let path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| io_err(&path, e))?;
-    std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e))?;
+    let written = serde_json::to_string_pretty(&summary)
+        .map_err(|e| io_err(&path, e))
+        .and_then(|text| std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e)));
+    folder.outputs_mut().record(&path, written);
+    summary.exit_status = folder.finish(&report.status);
+    summary.outputs_missing = folder.outputs().missing().to_vec();
     Ok(summary)
 }
 
@@ -500,12 +590,17 @@ fn run_quasi_static(
     stops: &[f64],
     sink: &mut OutputSink,
     progress: &mut Progress,
+    cancel: &CancelToken,
 ) -> Result<SolveReport, String> {
     let mut u = vec![0.0; dofs.total];
+    let params = crate::solver::NewtonParameters {
+        cancel: *cancel,
+        ..case.solver.clone()
+    };
     let result: QuasiStaticResult = solve_quasi_static(
         model,
         dofs,
-        &case.solver,
+        &params,
         case.displacement,
         stops,
         &mut u,
@@ -535,6 +630,7 @@ fn run_explicit(
     stops: &[f64],
     sink: &mut OutputSink,
     progress: &mut Progress,
+    cancel: &CancelToken,
 ) -> Result<SolveReport, String> {
     let density = case.density.ok_or_else(|| {
         format!(
@@ -542,7 +638,8 @@ fn run_explicit(
             case.source
         )
     })?;
-    let params = case.explicit.parameters();
+    let mut params = case.explicit.parameters();
+    params.cancel = *cancel;
     let total = case.displacement;
     // History rows every `history_interval`, plus the VTU and reported
     // displacements, as times of the clamp amplitude.
@@ -572,7 +669,7 @@ fn run_explicit(
         },
     )
     .map_err(|e| format!("{}: {e}", case.source))?;
-    write_energy(case, sink.out, &result.records, &result.status)?;
+    write_energy(case, &sink.out, &result.records, &result.status, sink.files);
     Ok(SolveReport {
         status: result.status.clone(),
         unknowns: dofs.n_free(),
@@ -604,7 +701,8 @@ fn write_energy(
     out: &Path,
     records: &[ExplicitRecord],
     status: &RunStatus,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     super::energy::write_energy(
         out,
         &[
@@ -615,14 +713,15 @@ fn write_energy(
             format!("units: {UNITS}; energies in N*mm (= mJ)"),
         ],
         records,
-        matches!(status, RunStatus::Complete),
+        status,
         &super::energy::EnergyAxis {
             header: "displacement [mm]",
             label: "clamp displacement [mm]",
             value: |r| r.load,
         },
         false,
-    )
+        files,
+    );
 }
 
 /// The status line of the file headers, in clamp displacements.
@@ -636,7 +735,8 @@ fn write_histories(
     history: &[HistoryRow],
     status: &RunStatus,
     solver: SolverKind,
-) -> Result<(), String> {
+    files: &mut Outputs,
+) {
     let preamble = |what: &str| {
         vec![
             format!("ncform run: {what}"),
@@ -678,7 +778,7 @@ fn write_histories(
                 .collect(),
         ),
     };
-    write_csv(
+    let written = write_csv(
         &path,
         &preamble(match solver {
             SolverKind::QuasiStatic => "clamp force vs clamp displacement (quasi-static)",
@@ -687,9 +787,10 @@ fn write_histories(
         &header,
         &rows,
     )
-    .map_err(|e| io_err(&path, e))?;
+    .map_err(|e| io_err(&path, e));
+    files.record(&path, written);
     let path = out.join("mdz_strains.csv");
-    write_csv(
+    let written = write_csv(
         &path,
         &preamble("strains averaged over the main deformation zone (E22 = I8-1, gamma = I10, E_perp = I11-1)"),
         &["displacement [mm]", "E22 [-]", "shear_angle [deg]", "E_perp [-]"],
@@ -698,20 +799,18 @@ fn write_histories(
             .map(|h| vec![h.displacement, h.mdz_e22, h.mdz_shear_angle_deg, h.mdz_e_perp])
             .collect::<Vec<_>>(),
     )
-    .map_err(|e| io_err(&path, e))?;
+    .map_err(|e| io_err(&path, e));
+    files.record(&path, written);
     let series = |label: &str, f: fn(&HistoryRow) -> f64| Series {
         label: label.to_string(),
         points: std::iter::once((0.0, 0.0))
             .chain(history.iter().map(|h| (h.displacement, f(h))))
             .collect(),
     };
-    let suffix = if matches!(status, RunStatus::Complete) {
-        ""
-    } else {
-        " (INCOMPLETE)"
-    };
-    write_panels(
-        &out.join("force_displacement.png"),
+    let suffix = super::plot_suffix(status);
+    let path = out.join("force_displacement.png");
+    let written = write_panels(
+        &path,
         &[Panel {
             title: format!("{}{suffix}", case.title),
             x_label: "clamp displacement [mm]".into(),
@@ -720,9 +819,11 @@ fn write_histories(
         }],
         (1, 1),
         (900, 650),
-    )?;
-    write_panels(
-        &out.join("mdz_strains.png"),
+    );
+    files.record(&path, written);
+    let path = out.join("mdz_strains.png");
+    let written = write_panels(
+        &path,
         &[
             Panel {
                 title: format!("MDZ E22{suffix}"),
@@ -745,10 +846,12 @@ fn write_histories(
         ],
         (1, 3),
         (1800, 550),
-    )
+    );
+    files.record(&path, written);
 }
 
-fn write_contours(built: &OatModel, out: &Path, snap: &Snapshot) -> Result<(), String> {
+/// `contours.png` at `path`.
+fn write_contours(built: &OatModel, path: &Path, snap: &Snapshot) -> Result<(), String> {
     let points: Vec<[f64; 2]> = built
         .mesh
         .nodes
@@ -780,7 +883,7 @@ fn write_contours(built: &OatModel, out: &Path, snap: &Snapshot) -> Result<(), S
             range: percentile_range(v, 0.005),
         })
         .collect();
-    write_contour_png(&out.join("contours.png"), &maps, (1800, 1100))
+    write_contour_png(path, &maps, (1800, 1100))
 }
 
 /// The `[q, 1 − q]` quantiles of the finite values, or `None` when they are

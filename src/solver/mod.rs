@@ -5,12 +5,14 @@
 //! parameters.
 
 pub mod assembly;
+pub mod cancel;
 pub mod dofs;
 pub mod explicit;
 pub mod linear;
 pub mod newton;
 
 pub use assembly::Assembler;
+pub use cancel::CancelToken;
 pub use dofs::{Dirichlet, DofMap};
 pub use explicit::{
     ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,

@@ -99,6 +99,10 @@ pub struct NewtonParameters {
     /// Stop (incomplete, keeping every converged step) when a step would
     /// start after this wall time \[s\]. Default: no limit.
     pub max_wall_seconds: Option<f64>,
+    /// Stop (interrupted, keeping every converged step) before the next
+    /// load step once this is cancelled. Not a case-file key.
+    #[serde(skip)]
+    pub cancel: super::CancelToken,
 }
 
 /// The viscous stabilisation of the quasi-static path
@@ -150,6 +154,7 @@ impl Default for NewtonParameters {
             stabilisation_factor: 0.0,
             stabilisation_limit: 0.01,
             max_wall_seconds: None,
+            cancel: super::CancelToken::default(),
         }
     }
 }
@@ -217,6 +222,12 @@ pub enum RunStatus {
         load_attempted: f64,
         /// Why the last attempt failed.
         reason: String,
+    },
+    /// Stopped on request (the parameters' cancel token) at a safe point;
+    /// results up to `load_reached` are valid.
+    Interrupted {
+        /// The load of the last converged step or output.
+        load_reached: f64,
     },
 }
 
@@ -307,6 +318,8 @@ enum AttemptError {
         penetration: f64,
         change: f64,
     },
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// Scratch of a run, allocated once.
@@ -602,6 +615,9 @@ impl Newton<'_> {
                     reaction,
                 });
             }
+            if self.params.cancel.is_cancelled() {
+                return Err(AttemptError::Interrupted);
+            }
             self.iterations += 1;
             let g0 = self.descent_direction(&r, &mut du)?;
             last_energy_norm = g0.abs();
@@ -706,7 +722,9 @@ pub struct Snapshot<'a> {
 /// # Errors
 /// Only set-up failures (the symbolic factorisation, a symmetric solver
 /// asked for an unsymmetric tangent); a failed solve is a result with
-/// [`RunStatus::Incomplete`].
+/// [`RunStatus::Incomplete`], one stopped by `params.cancel` (before a load
+/// step or a Newton iteration; the step in progress is dropped) a result
+/// with [`RunStatus::Interrupted`].
 pub fn solve_quasi_static(
     model: &mut Model,
     dofs: super::dofs::DofMap,
@@ -818,6 +836,9 @@ pub fn solve_quasi_static(
             .unwrap_or(final_load);
         let target = (load + increment).min(next_stop);
         let step_increment = target - load;
+        if params.cancel.is_cancelled() {
+            break RunStatus::Interrupted { load_reached: load };
+        }
         if let Some(budget) = params.max_wall_seconds
             && start.elapsed().as_secs_f64() > budget
         {
@@ -957,6 +978,9 @@ pub fn solve_quasi_static(
                     eprintln!("[newton] λ {target:.6} (Δλ {step_increment:.3e}) failed: {err}");
                 }
                 newton.model.restore();
+                if err == AttemptError::Interrupted {
+                    break RunStatus::Interrupted { load_reached: load };
+                }
                 cutbacks += 1;
                 if params.stabilisation == Stabilisation::Automatic {
                     boost = (boost * STABILISATION_BOOST).min(STABILISATION_MAX_BOOST);

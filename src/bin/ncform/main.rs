@@ -1,4 +1,7 @@
-//! The `ncform` command line.
+//! The `ncform` command line. Exit codes, one meaning each
+//! (`docs/cases.md`, "Exit codes"): 0 complete, 1 bad input or set-up
+//! error, 2 command-line usage, 3 solve incomplete, 4 interrupted by
+//! SIGINT/SIGTERM, 5 some outputs not written.
 
 use std::io::{self, BufReader};
 use std::path::PathBuf;
@@ -8,11 +11,13 @@ use clap::{Parser, Subcommand};
 
 use ncform::case::OatCase;
 use ncform::case::forming::{FormingCase, is_forming};
-use ncform::cli::form::run_forming;
-use ncform::cli::run::{Progress, default_out_dir, run_case};
+use ncform::cli::form::run_forming_with;
+use ncform::cli::run::{Progress, default_out_dir, run_case_with};
+use ncform::cli::run_folder::ExitStatus;
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
+use ncform::solver::{CancelToken, RunStatus};
 
 /// Forming simulation of dry UD non-crimp fabrics (Schäfer et al. 2024 law).
 /// Units: mm, N, MPa, tonne/mm³, s.
@@ -26,8 +31,12 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a case file (an off-axis tension test or a forming set-up) with
-    /// the quasi-static or the explicit solver; writes CSV, PNG, VTU/PVD
-    /// and a JSON summary.
+    /// the quasi-static or the explicit solver; writes CSV, PNG, VTU/PVD,
+    /// a JSON summary and status.json (with the manifest). An earlier run
+    /// in the output folder is moved aside to <out>.previous; SIGINT or
+    /// SIGTERM stops at the next safe point and writes what was reached.
+    /// Exit: 0 complete, 1 bad input, 2 usage, 3 incomplete, 4
+    /// interrupted, 5 outputs missing.
     Run {
         /// The case file (TOML), e.g. cases/oat45.toml.
         case: PathBuf,
@@ -86,14 +95,76 @@ enum MaterialCommand {
 }
 
 fn main() -> ExitCode {
+    // clap exits with 2 on a usage error (and 0 for --help, --version).
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
         Err(message) => {
             eprintln!("error: {message}");
-            ExitCode::FAILURE
+            exit(ExitStatus::BadInput)
         }
     }
+}
+
+fn exit(status: ExitStatus) -> ExitCode {
+    ExitCode::from(status.code())
+}
+
+/// A token cancelled by the first SIGINT or SIGTERM (the solvers then stop
+/// at their next safe point and the results so far are written); a second
+/// signal ends the process at once with the interrupted code, leaving
+/// `status.json` as `running`.
+fn cancel_on_signals() -> CancelToken {
+    let token = CancelToken::new();
+    let handler = token;
+    let installed = ctrlc::set_handler(move || {
+        if handler.is_cancelled() {
+            eprintln!("ncform: second interrupt: stopping at once; outputs may be missing");
+            std::process::exit(i32::from(ExitStatus::Interrupted.code()));
+        }
+        eprintln!(
+            "ncform: interrupt: stopping at the next safe point and writing the results so far (interrupt again to stop at once)"
+        );
+        handler.cancel();
+    });
+    if let Err(e) = installed {
+        eprintln!(
+            "warning: cannot catch SIGINT/SIGTERM ({e}); an interrupt ends the run without marking it"
+        );
+    }
+    token
+}
+
+/// The exit of a run: its status, and on stderr what is not as asked,
+/// with the load reached and the load attempted written by `reached` and
+/// `attempted`.
+fn run_exit(
+    status: &RunStatus,
+    exit_status: ExitStatus,
+    reached: impl Fn(f64) -> String,
+    attempted: impl Fn(f64) -> String,
+) -> ExitCode {
+    match status {
+        RunStatus::Complete => {}
+        RunStatus::Incomplete {
+            load_reached,
+            load_attempted,
+            reason,
+        } => eprintln!(
+            "error: the solve failed in the step from {} to {}: {reason}; results up to {} are written and marked incomplete",
+            reached(*load_reached),
+            attempted(*load_attempted),
+            reached(*load_reached)
+        ),
+        RunStatus::Interrupted { load_reached } => eprintln!(
+            "interrupted: results up to {} are written and marked interrupted",
+            reached(*load_reached)
+        ),
+    }
+    if exit_status == ExitStatus::OutputsMissing {
+        eprintln!("error: some outputs could not be written (listed above and in status.json)");
+    }
+    exit(exit_status)
 }
 
 /// `ncform run` for a forming case.
@@ -109,7 +180,7 @@ fn run_forming_case(
     } else {
         Progress::auto_programme()
     };
-    let summary = run_forming(&spec, &out, progress)?;
+    let summary = run_forming_with(&spec, &out, progress, &cancel_on_signals())?;
     let work = match &summary.explicit {
         None => format!(
             "{} steps, {} Newton iterations, {} augmentations",
@@ -144,20 +215,12 @@ fn run_forming_case(
         spec.title, summary.wall_seconds
     );
     println!("results in {}", out.display());
-    if summary.complete {
-        return Ok(ExitCode::SUCCESS);
-    }
-    if let ncform::solver::RunStatus::Incomplete {
-        load_reached,
-        load_attempted,
-        reason,
-    } = &summary.status
-    {
-        eprintln!(
-            "error: the solve failed in the step from programme fraction {load_reached} to {load_attempted}: {reason}; results up to {load_reached} are written and marked incomplete"
-        );
-    }
-    Ok(ExitCode::from(2))
+    Ok(run_exit(
+        &summary.status,
+        summary.exit_status,
+        |load| format!("programme fraction {load}"),
+        |load| load.to_string(),
+    ))
 }
 
 fn run(cli: Cli) -> Result<ExitCode, String> {
@@ -175,7 +238,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             } else {
                 Progress::auto(spec.displacement)
             };
-            let summary = run_case(&spec, &out, progress)?;
+            let summary = run_case_with(&spec, &out, progress, &cancel_on_signals())?;
             let forces: Vec<String> = summary
                 .forces
                 .iter()
@@ -205,21 +268,12 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 spec.title, summary.wall_seconds
             );
             println!("results in {}", out.display());
-            if summary.complete {
-                Ok(ExitCode::SUCCESS)
-            } else {
-                if let ncform::solver::RunStatus::Incomplete {
-                    load_reached,
-                    load_attempted,
-                    reason,
-                } = &summary.status
-                {
-                    eprintln!(
-                        "error: the solve failed in the step from d = {load_reached} mm to {load_attempted} mm: {reason}; results up to d = {load_reached} mm are written and marked incomplete"
-                    );
-                }
-                Ok(ExitCode::from(2))
-            }
+            Ok(run_exit(
+                &summary.status,
+                summary.exit_status,
+                |d| format!("d = {d} mm"),
+                |d| format!("{d} mm"),
+            ))
         }
         Command::Material { command } => match command {
             MaterialCommand::Eval { params } => {
@@ -238,7 +292,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                         "material eval: {} line(s) answered, {} line(s) with errors",
                         summary.answered, summary.failed
                     );
-                    return Ok(ExitCode::FAILURE);
+                    return Ok(exit(ExitStatus::BadInput));
                 }
                 Ok(ExitCode::SUCCESS)
             }
@@ -260,7 +314,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 let report = material_check::run_check(&spec, states, seed);
                 print!("{}", material_check::format_report(&spec, &report));
                 if report.failed > 0 || report.rejected > 0 {
-                    return Ok(ExitCode::FAILURE);
+                    return Ok(exit(ExitStatus::BadInput));
                 }
                 Ok(ExitCode::SUCCESS)
             }

@@ -263,7 +263,8 @@ struct Buffers {
 /// # Errors
 /// Bad settings or a model that cannot start; a run that fails on the way is
 /// a result with [`RunStatus::Incomplete`] whose records stop at the last
-/// output before the failure.
+/// output before the failure, and one stopped by `params.cancel` a result
+/// with [`RunStatus::Interrupted`] whose last record is the state reached.
 pub fn solve_explicit(
     model: &mut Model,
     dofs: &DofMap,
@@ -544,7 +545,9 @@ fn integrate(
         reaction = new_reaction;
         load = load_next;
 
-        if lands {
+        // On a stop request the state reached is output as a last record.
+        let interrupted = params.cancel.is_cancelled();
+        if lands || interrupted {
             let clock = Instant::now();
             let (kinetic, driven, half_step_damping, terms) = match kinetic_and_terms(
                 &system,
@@ -615,8 +618,14 @@ fn integrate(
                 },
             );
             last_output_load = load;
-            next_output += 1;
+            next_output += usize::from(lands);
             timings.outputs += clock.elapsed().as_secs_f64();
+        }
+        // (A stop request at the last output comes too late to stop anything.)
+        if interrupted && next_output < times.len() {
+            break RunStatus::Interrupted {
+                load_reached: last_output_load,
+            };
         }
 
         if increments.is_multiple_of(update_interval) {

@@ -112,6 +112,10 @@ pub struct ExplicitParameters {
     /// already asks for more is refused before it starts, one that reaches
     /// it later stops there, incomplete, with its results so far.
     pub max_increments: usize,
+    /// Stop (interrupted, after an output of the state reached) at the next
+    /// time increment once this is cancelled. Not a case-file key.
+    #[serde(skip)]
+    pub cancel: crate::solver::CancelToken,
 }
 
 /// Default of [`ExplicitParameters::max_increments`]: 25 times the
@@ -137,6 +141,7 @@ impl ExplicitParameters {
             energy_balance_warning: 0.01,
             threads: 0,
             max_increments: DEFAULT_MAX_INCREMENTS,
+            cancel: crate::solver::CancelToken::default(),
         }
     }
 

@@ -1,0 +1,542 @@
+//! The output folder of `ncform run` (`docs/cases.md`, "The run folder"):
+//! one run per folder, never mixed with another.
+//!
+//! - Before the solve the folder is prepared: an earlier ncform run in it
+//!   (recognised by its `status.json`, or the `summary.json` of a run from
+//!   before status files) is moved aside whole to `<out>.previous` (or
+//!   `<out>.previous-2`, `-3`, …: nothing is deleted); a non-empty folder
+//!   that is not an ncform run is refused; an empty or missing one is used.
+//! - `status.json` is written first as `running` (case, start time, pid,
+//!   ncform version) and rewritten last as `complete`, `incomplete`,
+//!   `interrupted` or `failed`, with the manifest: every file the run wrote
+//!   (path relative to the folder, bytes) and every output it could not
+//!   write, with the error. It is replaced atomically (written beside,
+//!   then renamed), so a reader never sees half of it.
+//! - Every output goes through [`Outputs::record`]: a write that fails is
+//!   reported on stderr and listed as missing, and the run goes on with
+//!   the others.
+//!
+//! The exit codes of the command line, one meaning each, are
+//! [`ExitStatus`].
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+use serde::{Deserialize, Serialize};
+
+use crate::solver::RunStatus;
+
+/// The status file's name in the run folder.
+pub const STATUS_FILE: &str = "status.json";
+
+/// The `format` of a status file this version writes.
+pub const STATUS_FORMAT: &str = "ncform-run-folder-1";
+
+/// Earlier runs moved aside from one folder before the preparation gives
+/// up (`<out>.previous`, `<out>.previous-2`, …).
+const MAX_PREVIOUS: usize = 1000;
+
+/// How a command ended: the process exit code, one meaning each
+/// (`docs/cases.md`, "Exit codes").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ExitStatus {
+    /// 0: the run is complete and every output is written.
+    Complete,
+    /// 1: bad input or a set-up error (case, parameter or mesh file, eval
+    /// lines, an output folder that cannot be used); nothing was solved.
+    BadInput,
+    /// 2: a command-line usage error (clap's own code).
+    Usage,
+    /// 3: the solve stopped early; the results up to the last converged
+    /// state are written and marked incomplete.
+    Incomplete,
+    /// 4: stopped by SIGINT or SIGTERM; the results up to the last state
+    /// are written and marked interrupted.
+    Interrupted,
+    /// 5: some outputs could not be written (listed in `status.json` and on
+    /// stderr); takes precedence over 3 and 4.
+    OutputsMissing,
+}
+
+impl ExitStatus {
+    /// The process exit code.
+    pub fn code(self) -> u8 {
+        match self {
+            ExitStatus::Complete => 0,
+            ExitStatus::BadInput => 1,
+            ExitStatus::Usage => 2,
+            ExitStatus::Incomplete => 3,
+            ExitStatus::Interrupted => 4,
+            ExitStatus::OutputsMissing => 5,
+        }
+    }
+
+    /// The exit status of a run whose solve ended with `status` and which
+    /// could not write `missing` outputs.
+    pub fn of_run(status: &RunStatus, missing: usize) -> Self {
+        if missing > 0 {
+            return ExitStatus::OutputsMissing;
+        }
+        match status {
+            RunStatus::Complete => ExitStatus::Complete,
+            RunStatus::Incomplete { .. } => ExitStatus::Incomplete,
+            RunStatus::Interrupted { .. } => ExitStatus::Interrupted,
+        }
+    }
+}
+
+/// A file the run wrote.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct WrittenFile {
+    /// Path relative to the run folder, `/`-separated.
+    pub path: String,
+    /// Size \[bytes\].
+    pub bytes: u64,
+}
+
+/// An output the run could not write.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MissingOutput {
+    /// Path relative to the run folder (or what could not be made).
+    pub path: String,
+    /// Why: the error, with the OS's message.
+    pub error: String,
+}
+
+/// The run's state as `status.json` says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FolderStatus {
+    /// The run is going on (or was killed without a chance to say so:
+    /// then `pid` is no longer running).
+    Running,
+    /// The solve reached its end.
+    Complete,
+    /// The solve stopped early (`solve` says where and why).
+    Incomplete,
+    /// Stopped on SIGINT/SIGTERM.
+    Interrupted,
+    /// A set-up error after the folder was prepared (`error`).
+    Failed,
+}
+
+/// The content of `status.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct StatusFile {
+    /// [`STATUS_FORMAT`].
+    pub format: String,
+    /// The run's state.
+    pub status: FolderStatus,
+    /// `true` when every output was written (`missing` is empty).
+    pub outputs_complete: bool,
+    /// The exit code of the command (absent while running).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub exit_code: Option<u8>,
+    /// The ncform version that made the run.
+    pub ncform_version: String,
+    /// The case file.
+    pub case: String,
+    /// The case title.
+    pub title: String,
+    /// Process id of the run.
+    pub pid: u32,
+    /// Start time (RFC 3339, UTC).
+    pub started: String,
+    /// End time (RFC 3339, UTC; absent while running).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub finished: Option<String>,
+    /// How the solve ended: `complete`, or `incomplete` with the last
+    /// converged load, the load attempted and the reason, or `interrupted`
+    /// with the load reached (absent while running or on a set-up error).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub solve: Option<serde_json::Value>,
+    /// The set-up error of a failed run.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub error: Option<String>,
+    /// Where the earlier run in this folder was moved.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub previous_run: Option<String>,
+    /// The manifest: every file the run wrote, `status.json` aside.
+    pub files: Vec<WrittenFile>,
+    /// Every output that could not be written, and why.
+    pub missing: Vec<MissingOutput>,
+}
+
+/// What a run wrote and what it could not, under its folder.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    root: PathBuf,
+    files: BTreeMap<String, u64>,
+    missing: Vec<MissingOutput>,
+}
+
+impl Outputs {
+    /// A record of the outputs under `root`.
+    pub fn new(root: &Path) -> Self {
+        Self {
+            root: root.to_path_buf(),
+            files: BTreeMap::new(),
+            missing: Vec::new(),
+        }
+    }
+
+    /// The folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// `path` relative to the folder, `/`-separated.
+    fn relative(&self, path: &Path) -> String {
+        let rel = path.strip_prefix(&self.root).unwrap_or(path);
+        rel.components()
+            .map(|c| c.as_os_str().to_string_lossy())
+            .collect::<Vec<_>>()
+            .join("/")
+    }
+
+    /// Records the outcome of writing `path`: its size when `result` is
+    /// `Ok`, else a missing output, reported on stderr. Returns whether it
+    /// was written.
+    pub fn record(&mut self, path: &Path, result: Result<(), String>) -> bool {
+        let rel = self.relative(path);
+        match result.and_then(|()| {
+            std::fs::metadata(path)
+                .map(|m| m.len())
+                .map_err(|e| format!("{}: {e}", path.display()))
+        }) {
+            Ok(bytes) => {
+                self.missing.retain(|m| m.path != rel);
+                self.files.insert(rel, bytes);
+                true
+            }
+            Err(error) => {
+                eprintln!("error: output not written: {error}");
+                self.files.remove(&rel);
+                self.missing.push(MissingOutput { path: rel, error });
+                false
+            }
+        }
+    }
+
+    /// Records an output that could not be made at all (`what`: its path
+    /// relative to the folder, or what it is), reported on stderr.
+    pub fn record_missing(&mut self, what: &str, error: String) {
+        eprintln!("error: output not written: {what}: {error}");
+        self.missing.push(MissingOutput {
+            path: what.to_string(),
+            error,
+        });
+    }
+
+    /// The files written so far.
+    pub fn files(&self) -> Vec<WrittenFile> {
+        self.files
+            .iter()
+            .map(|(path, bytes)| WrittenFile {
+                path: path.clone(),
+                bytes: *bytes,
+            })
+            .collect()
+    }
+
+    /// The outputs that could not be written so far.
+    pub fn missing(&self) -> &[MissingOutput] {
+        &self.missing
+    }
+}
+
+/// A prepared run folder: `status.json` says `running`; every output is
+/// recorded in [`RunFolder::outputs`].
+#[derive(Debug)]
+pub struct RunFolder {
+    status: StatusFile,
+    outputs: Outputs,
+}
+
+/// The current time in RFC 3339 (UTC, seconds).
+fn now() -> String {
+    humantime::format_rfc3339_seconds(SystemTime::now()).to_string()
+}
+
+/// What an existing folder holds.
+enum Existing {
+    /// Nothing: use it.
+    Empty,
+    /// An earlier ncform run, with the pid of a run still marked running.
+    Run { running_pid: Option<u32> },
+    /// Something else: refuse.
+    Foreign(String),
+}
+
+/// Looks at the folder `out` (which exists and is a directory).
+fn inspect(out: &Path) -> Result<Existing, String> {
+    let mut entries = std::fs::read_dir(out)
+        .map_err(|e| format!("output folder '{}': {e}", out.display()))?
+        .filter_map(Result::ok);
+    let Some(first) = entries.next() else {
+        return Ok(Existing::Empty);
+    };
+    if let Ok(text) = std::fs::read_to_string(out.join(STATUS_FILE))
+        && let Ok(status) = serde_json::from_str::<StatusFile>(&text)
+        && status.format == STATUS_FORMAT
+    {
+        let running_pid = (status.status == FolderStatus::Running).then_some(status.pid);
+        return Ok(Existing::Run { running_pid });
+    }
+    // A run from before status files: its summary.json names the case,
+    // the status and the units.
+    if let Ok(text) = std::fs::read_to_string(out.join("summary.json"))
+        && let Ok(serde_json::Value::Object(summary)) = serde_json::from_str(&text)
+        && ["case", "status", "units"]
+            .iter()
+            .all(|k| summary.contains_key(*k))
+    {
+        return Ok(Existing::Run { running_pid: None });
+    }
+    Ok(Existing::Foreign(
+        first.file_name().to_string_lossy().into_owned(),
+    ))
+}
+
+/// `true` when a process `pid` other than this one is running (Linux:
+/// `/proc/<pid>`; elsewhere unknown, taken as not running).
+fn process_alive(pid: u32) -> bool {
+    pid != std::process::id() && Path::new("/proc").join(pid.to_string()).is_dir()
+}
+
+/// The first free `<out>.previous`, `<out>.previous-2`, … beside `out`.
+fn previous_path(out: &Path) -> Result<PathBuf, String> {
+    let name = out.file_name().ok_or_else(|| {
+        format!(
+            "output folder '{}' holds an earlier run, which cannot be moved aside from a path without a folder name; give --out a named folder",
+            out.display()
+        )
+    })?;
+    for k in 1..=MAX_PREVIOUS {
+        let mut candidate = name.to_os_string();
+        if k == 1 {
+            candidate.push(".previous");
+        } else {
+            candidate.push(format!(".previous-{k}"));
+        }
+        let path = out.with_file_name(candidate);
+        if std::fs::symlink_metadata(&path).is_err() {
+            return Ok(path);
+        }
+    }
+    Err(format!(
+        "output folder '{}': {MAX_PREVIOUS} earlier runs are already moved aside beside it ('{}.previous*'); delete some or choose another --out",
+        out.display(),
+        name.to_string_lossy()
+    ))
+}
+
+/// Writes `text` to `path` atomically: into a file beside it, then renamed.
+fn write_atomic(path: &Path, text: &str) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_os_string();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)
+}
+
+impl RunFolder {
+    /// Prepares `out` for a run of the case file `case` titled `title`:
+    /// moves an earlier run aside (said on stderr), refuses a folder with
+    /// other files, creates `out` and its `subdirs`, and writes
+    /// `status.json` as `running`.
+    ///
+    /// # Errors
+    /// A folder that is not empty and holds no ncform run, a run still
+    /// going on in it, or a file-system error, naming the path.
+    pub fn prepare(out: &Path, case: &str, title: &str, subdirs: &[&str]) -> Result<Self, String> {
+        let mut previous_run = None;
+        match std::fs::metadata(out) {
+            Ok(meta) if !meta.is_dir() => {
+                return Err(format!(
+                    "output folder '{}' is a file, not a folder; choose another --out",
+                    out.display()
+                ));
+            }
+            Ok(_) => match inspect(out)? {
+                Existing::Empty => {}
+                Existing::Foreign(entry) => {
+                    return Err(format!(
+                        "output folder '{}' is not empty ('{entry}', …) and holds no ncform run (no {STATUS_FILE}); ncform never deletes files it did not write: choose another --out, or empty the folder",
+                        out.display()
+                    ));
+                }
+                Existing::Run {
+                    running_pid: Some(pid),
+                } if process_alive(pid) => {
+                    return Err(format!(
+                        "output folder '{}' holds a run still going on (process {pid}, {STATUS_FILE} says running); wait for it or choose another --out",
+                        out.display()
+                    ));
+                }
+                Existing::Run { .. } => {
+                    let aside = previous_path(out)?;
+                    std::fs::rename(out, &aside).map_err(|e| {
+                        format!(
+                            "output folder '{}' holds an earlier run that could not be moved aside to '{}': {e}",
+                            out.display(),
+                            aside.display()
+                        )
+                    })?;
+                    eprintln!(
+                        "note: the earlier run in {} was moved to {}",
+                        out.display(),
+                        aside.display()
+                    );
+                    previous_run = Some(aside.display().to_string());
+                }
+            },
+            Err(_) => {}
+        }
+        for dir in std::iter::once(out.to_path_buf()).chain(subdirs.iter().map(|d| out.join(d))) {
+            std::fs::create_dir_all(&dir)
+                .map_err(|e| format!("output folder '{}': {e}", dir.display()))?;
+        }
+        let folder = Self {
+            status: StatusFile {
+                format: STATUS_FORMAT.into(),
+                status: FolderStatus::Running,
+                outputs_complete: true,
+                exit_code: None,
+                ncform_version: env!("CARGO_PKG_VERSION").into(),
+                case: case.into(),
+                title: title.into(),
+                pid: std::process::id(),
+                started: now(),
+                finished: None,
+                solve: None,
+                error: None,
+                previous_run,
+                files: Vec::new(),
+                missing: Vec::new(),
+            },
+            outputs: Outputs::new(out),
+        };
+        folder.write_status().map_err(|e| {
+            format!(
+                "output folder '{}': cannot write {STATUS_FILE}: {e}",
+                out.display()
+            )
+        })?;
+        Ok(folder)
+    }
+
+    /// The folder.
+    pub fn path(&self) -> &Path {
+        self.outputs.root()
+    }
+
+    /// Where the earlier run was moved, if there was one.
+    pub fn previous_run(&self) -> Option<&str> {
+        self.status.previous_run.as_deref()
+    }
+
+    /// The record of the outputs.
+    pub fn outputs(&self) -> &Outputs {
+        &self.outputs
+    }
+
+    /// The record of the outputs, to add to.
+    pub fn outputs_mut(&mut self) -> &mut Outputs {
+        &mut self.outputs
+    }
+
+    fn write_status(&self) -> std::io::Result<()> {
+        let text = serde_json::to_string_pretty(&self.status).map_err(std::io::Error::other)?;
+        write_atomic(&self.path().join(STATUS_FILE), &(text + "\n"))
+    }
+
+    /// Rewrites `status.json` with the end of the solve, `solve`, the
+    /// manifest and the missing outputs; returns the exit status. A
+    /// `status.json` that cannot be written is reported on stderr and
+    /// makes the exit status [`ExitStatus::OutputsMissing`].
+    pub fn finish(&mut self, solve: &RunStatus) -> ExitStatus {
+        self.status.status = match solve {
+            RunStatus::Complete => FolderStatus::Complete,
+            RunStatus::Incomplete { .. } => FolderStatus::Incomplete,
+            RunStatus::Interrupted { .. } => FolderStatus::Interrupted,
+        };
+        self.status.solve = serde_json::to_value(solve).ok();
+        let exit = ExitStatus::of_run(solve, self.outputs.missing.len());
+        self.close(exit)
+    }
+
+    /// Rewrites `status.json` as `failed` with the set-up error `error`
+    /// (the exit status is [`ExitStatus::BadInput`]).
+    pub fn fail(&mut self, error: &str) {
+        self.status.status = FolderStatus::Failed;
+        self.status.error = Some(error.to_string());
+        self.close(ExitStatus::BadInput);
+    }
+
+    /// `result`, with its error (a set-up error) written to `status.json`
+    /// as `failed` ([`RunFolder::fail`]).
+    ///
+    /// # Errors
+    /// The error of `result`.
+    pub fn failed_on_error<T>(&mut self, result: Result<T, String>) -> Result<T, String> {
+        if let Err(e) = &result {
+            self.fail(e);
+        }
+        result
+    }
+
+    fn close(&mut self, exit: ExitStatus) -> ExitStatus {
+        self.status.outputs_complete = self.outputs.missing.is_empty();
+        self.status.exit_code = Some(exit.code());
+        self.status.finished = Some(now());
+        self.status.files = self.outputs.files();
+        self.status.missing = self.outputs.missing.clone();
+        match self.write_status() {
+            Ok(()) => exit,
+            Err(e) => {
+                eprintln!(
+                    "error: output not written: {}: {e}",
+                    self.path().join(STATUS_FILE).display()
+                );
+                if exit == ExitStatus::BadInput {
+                    exit
+                } else {
+                    ExitStatus::OutputsMissing
+                }
+            }
+        }
+    }
+}
+
+/// A folder dropped while its status still says `running` — a panic
+/// unwinding through the run (a bug), or a caller that neither finished
+/// nor failed it — is marked `failed` with what was written, so that
+/// `running` only ever means a run going on or killed.
+impl Drop for RunFolder {
+    fn drop(&mut self) {
+        if self.status.status != FolderStatus::Running {
+            return;
+        }
+        let panicking = std::thread::panicking();
+        self.status.status = FolderStatus::Failed;
+        self.status.error = Some(if panicking {
+            "ncform stopped on an internal error (a panic: a bug in ncform; please report it with the case file); the files listed are those written before it".into()
+        } else {
+            "the run ended without a final status".into()
+        });
+        self.status.exit_code = panicking.then_some(101);
+        self.status.outputs_complete = false;
+        self.status.finished = Some(now());
+        self.status.files = self.outputs.files();
+        self.status.missing = self.outputs.missing.clone();
+        if let Err(e) = self.write_status() {
+            eprintln!(
+                "error: output not written: {}: {e}",
+                self.path().join(STATUS_FILE).display()
+            );
+        }
+    }
+}
