@@ -475,3 +475,16 @@ fn drawn_tools_stay_bounded() {
     .unwrap_err();
     assert_mentions(&err, &["capstan.toml:", "extent = 1e308", "(0, 1e6]"]);
 }
+
+/// KE/IE stays finite when the stored energy is denormal (found by the
+/// solver fuzz: `max_kinetic_ratio: inf`).
+#[test]
+fn the_kinetic_ratio_is_finite_over_a_denormal_internal_energy() {
+    let energies = ncform::solver::explicit::Energies {
+        internal: 5e-324,
+        kinetic: 1.0,
+        ..Default::default()
+    };
+    let ratio = energies.kinetic_ratio();
+    assert!(ratio.is_finite() && ratio > 1.0, "{ratio}");
+}

@@ -106,16 +106,22 @@ impl Energies {
 
     /// `KE / (IE + CE)`: the kinetic energy of every node (free and
     /// driven) over the energy stored in the model (strain and contact
-    /// springs), or 0 while nothing is stored.
+    /// springs), or 0 while nothing is stored; at most
+    /// [`MAX_KINETIC_RATIO`] (a denormal stored energy under a finite
+    /// kinetic one would give infinity).
     pub fn kinetic_ratio(&self) -> f64 {
         let stored = self.internal + self.contact;
         if stored > 0.0 {
-            (self.kinetic + self.driven_kinetic) / stored
+            ((self.kinetic + self.driven_kinetic) / stored).min(MAX_KINETIC_RATIO)
         } else {
             0.0
         }
     }
 }
+
+/// Ceiling of [`Energies::kinetic_ratio`]: far above any warning level,
+/// and finite, so that summaries and CSVs never hold an infinity.
+pub const MAX_KINETIC_RATIO: f64 = 1e300;
 
 /// The state at one output instant.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
