@@ -488,3 +488,61 @@ fn the_kinetic_ratio_is_finite_over_a_denormal_internal_energy() {
     let ratio = energies.kinetic_ratio();
     assert!(ratio.is_finite() && ratio > 1.0, "{ratio}");
 }
+
+/// `material curves`: a set that cannot be drawn is bad input (exit 1), a
+/// folder that cannot be written is a write failure (exit 5), as the
+/// documented exit codes say.
+#[test]
+fn material_curves_exit_codes_tell_bad_input_from_write_failures() {
+    let dir = TempDir::new().unwrap();
+    let curves = |params: &str, out: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ncform"))
+            .args(["material", "curves", "--params", params, "--out"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let svk = svk_file(dir.path(), "50.0", "1.0");
+    let bad = curves(&svk.display().to_string(), &dir.path().join("a"));
+    assert_eq!(
+        bad.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+    // A file where the folder should be: the folder cannot be made, even
+    // by root.
+    let blocked = write(&dir.path().join("blocked"), "not a folder");
+    let failed = curves("schaefer2024", &blocked);
+    assert_eq!(
+        failed.status.code(),
+        Some(5),
+        "{}",
+        String::from_utf8_lossy(&failed.stderr)
+    );
+    assert!(String::from_utf8_lossy(&failed.stderr).contains("blocked"));
+}
+
+/// A stroke in 1e-308 s: the clamp nodes' kinetic energy overflows; the
+/// run stops incomplete instead of reporting an infinite energy (found by
+/// the solver fuzz at seed 11).
+#[test]
+fn an_overflowing_kinetic_energy_ends_the_run_incomplete() {
+    let dir = TempDir::new().unwrap();
+    let case = load(dir.path(), &explicit_base("clamp_speed = 1e308\n")).unwrap();
+    match run(case, dir.path().join("out")) {
+        Err(e) => assert_mentions(&e, &["clamp_speed"]),
+        Ok(summary) => {
+            assert!(!summary.complete);
+            assert_mentions(incomplete_reason(&summary), &["kinetic energy overflows"]);
+            let json = serde_json::to_value(&summary).unwrap();
+            assert_finite_json(&json["history"], "history");
+            let last = &json["explicit"]["final_energies"];
+            if !last.is_null() {
+                assert_finite_json(last, "explicit.final_energies");
+            }
+            let ratio = summary.explicit.as_ref().unwrap().max_kinetic_ratio;
+            assert!(ratio.is_finite(), "max_kinetic_ratio {ratio}");
+        }
+    }
+}

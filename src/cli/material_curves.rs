@@ -91,13 +91,14 @@ fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
     Ok(())
 }
 
-/// Writes the curves of a UD-NCF parameter set into `out` and returns the
-/// files written.
+/// The UD-NCF law of `spec` if its curves can be drawn: a UD-NCF set whose
+/// values stay finite over the plotted ranges. [`write_curves`] checks
+/// this first; a caller can check it alone to tell bad input from a write
+/// failure.
 ///
 /// # Errors
-/// A message naming the file on I/O failure, or when the set is not a
-/// UD-NCF law.
-pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, String> {
+/// Another law, or values that overflow, naming the set.
+pub fn curves_law(spec: &MaterialSpec) -> Result<UdNcf, String> {
     let Material::UdNcf(law) = spec.material else {
         return Err(format!(
             "{}: material curves needs a UD-NCF parameter set (law = \"ud-ncf\")",
@@ -105,6 +106,17 @@ pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, Str
         ));
     };
     check_finite(spec, &law)?;
+    Ok(law)
+}
+
+/// Writes the curves of a UD-NCF parameter set into `out` and returns the
+/// files written.
+///
+/// # Errors
+/// A message naming the file on I/O failure, or when the set is not a
+/// UD-NCF law.
+pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, String> {
+    let law = curves_law(spec)?;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let io = |path: &Path, e: std::io::Error| format!("{}: {e}", path.display());
     let mut written = Vec::new();

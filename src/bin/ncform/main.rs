@@ -298,8 +298,15 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             }
             MaterialCommand::Curves { params, out } => {
                 let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
-                let written =
-                    material_curves::write_curves(&spec, &out).map_err(|e| e.to_string())?;
+                // Bad input (exit 1) apart from a write failure (exit 5).
+                material_curves::curves_law(&spec)?;
+                let written = match material_curves::write_curves(&spec, &out) {
+                    Ok(written) => written,
+                    Err(message) => {
+                        eprintln!("error: {message}");
+                        return Ok(exit(ExitStatus::OutputsMissing));
+                    }
+                };
                 for path in written {
                     println!("{}", path.display());
                 }

@@ -572,6 +572,17 @@ fn integrate(
                     };
                 }
             };
+            if !(kinetic.is_finite() && driven.is_finite()) {
+                // Velocities whose ½ m v² overflows (a stroke in 1e-308 s):
+                // no state worth reporting lies beyond the last output.
+                break RunStatus::Incomplete {
+                    load_reached: last_output_load,
+                    load_attempted: load,
+                    reason: format!(
+                        "output at t = {time:.6e} s: the kinetic energy overflows (free nodes {kinetic:.3e}, driven nodes {driven:.3e} N·mm): the motion is far too fast; lower the loading speed"
+                    ),
+                };
+            }
             // The reported energies are at t_n: the running damping sum
             // reaches t_{n−½}, the last half step is added for the report.
             let mut reported = energies;
