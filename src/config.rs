@@ -82,37 +82,27 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, source: &str) -> Result<T, Co
 /// digits when it expected an integer, while a number quoted from the
 /// file stays as written.
 fn shorten_numbers(message: &str, text: &str) -> String {
-    let bytes = message.as_bytes();
     let mut out = String::with_capacity(message.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        let number = |b: u8| b.is_ascii_digit() || b == b'.';
-        if bytes[i].is_ascii_digit() {
-            let start = if i > 0 && bytes[i - 1] == b'-' {
-                i - 1
-            } else {
-                i
-            };
-            let mut end = i;
-            while end < bytes.len() && number(bytes[end]) {
-                end += 1;
-            }
-            let run = &message[start..end];
-            let digits = run.bytes().filter(u8::is_ascii_digit).count();
-            match run.parse::<f64>() {
-                Ok(x) if digits >= 20 && !text.contains(run) => {
-                    out.truncate(out.len() - (i - start));
-                    out.push_str(&readable_number(x));
-                }
-                _ => out.push_str(&message[i..end]),
-            }
-            i = end;
+    let mut rest = message;
+    while let Some(first) = rest.find(|c: char| c.is_ascii_digit()) {
+        let start = if rest[..first].ends_with('-') {
+            first - 1
         } else {
-            let c = message[i..].chars().next().expect("a char at a boundary");
-            out.push(c);
-            i += c.len_utf8();
+            first
+        };
+        let end = rest[first..]
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .map_or(rest.len(), |n| first + n);
+        let run = &rest[start..end];
+        out.push_str(&rest[..start]);
+        let digits = run.bytes().filter(u8::is_ascii_digit).count();
+        match run.parse::<f64>() {
+            Ok(x) if digits >= 20 && !text.contains(run) => out.push_str(&readable_number(x)),
+            _ => out.push_str(run),
         }
+        rest = &rest[end..];
     }
+    out.push_str(rest);
     out
 }
 

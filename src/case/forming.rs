@@ -1760,15 +1760,14 @@ fn tool_spec(
                 "no displacement for a floating tool (it moves under its weight)",
             )?;
             let direction = direction()?;
-            let mass = match &t.mass {
-                None => {
-                    return Err(check.missing(
-                        &key("mass"),
-                        "the floating tool's mass [kg] (a floating tool needs a mass and a weight)",
-                    ));
-                }
-                Some(m) => check.range(m, &key("mass"), |x| x > 0.0, "a mass > 0 kg")? * KG_IN_T,
+            let Some(given_mass) = &t.mass else {
+                return Err(check.missing(
+                    &key("mass"),
+                    "the floating tool's mass [kg] (a floating tool needs a mass and a weight)",
+                ));
             };
+            let mass =
+                check.range(given_mass, &key("mass"), |x| x > 0.0, "a mass > 0 kg")? * KG_IN_T;
             let weight = match &t.weight {
                 Some(w) => check.range(
                     w,
@@ -1780,11 +1779,10 @@ fn tool_spec(
                     let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
                     let weight = mass * g.dot(&direction);
                     if !weight.is_finite() {
-                        let m = t.mass.as_ref().expect("the mass is given");
                         return Err(check.invalid(
-                            check.line_of(m),
+                            check.line_of(given_mass),
                             &key("mass"),
-                            crate::config::readable_number(*m.get_ref()),
+                            crate::config::readable_number(*given_mass.get_ref()),
                             "a mass whose weight (mass × gravity) is finite",
                         ));
                     }

@@ -21,6 +21,7 @@ use crate::post::forming::{
     mode_areas, outer_boundary, strain_measure, strain_measures, weighted_mean_std,
 };
 use crate::post::plot::{Panel, Series, Series as Outline, write_outlines_png, write_panels};
+use crate::solver::RunStatus;
 
 /// One ply's blank: its outer boundary and draw-in points.
 struct PlyBlank {
@@ -249,7 +250,7 @@ pub fn write_outer_contours(
     readout: &Readout,
     states: &[OutlineState],
     out: &Path,
-    (header_status, stroke_label): (&str, &str),
+    (status, stroke_label): (&RunStatus, &str),
     files: &mut Outputs,
 ) {
     let reference = readout.reference_outlines();
@@ -287,7 +288,7 @@ pub fn write_outer_contours(
         &[
             "ncform run: outer contour of each ply, projected on the blank plane (z dropped), in order along the boundary".to_string(),
             format!("case: {} ({})", case.title, case.source),
-            header_status.to_string(),
+            super::form::status_line(status),
             format!("plies: {}", plies.join(", ")),
             "units: mm".into(),
         ],
@@ -314,7 +315,7 @@ pub fn write_outer_contours(
             });
         }
     }
-    let incomplete = suffix(header_status);
+    let incomplete = super::plot_suffix(status);
     let path = out.join("outer_contour.png");
     let written = write_outlines_png(
         &path,
@@ -323,19 +324,6 @@ pub fn write_outer_contours(
         900,
     );
     files.record(&path, written);
-}
-
-/// The plot-title suffix of a run whose files' status line is
-/// `header_status`: nothing when complete, else ` (INCOMPLETE)` or
-/// ` (INTERRUPTED)`.
-fn suffix(header_status: &str) -> &'static str {
-    if header_status.contains("INTERRUPTED") {
-        " (INTERRUPTED)"
-    } else if header_status.contains("INCOMPLETE") {
-        " (INCOMPLETE)"
-    } else {
-        ""
-    }
 }
 
 /// One history row of `forming.csv`.
@@ -362,7 +350,7 @@ pub fn write_forming_history(
     readout: &Readout,
     rows: &[BlankRow],
     out: &Path,
-    (header_status, stroke_label): (&str, &str),
+    (status, stroke_label): (&RunStatus, &str),
     files: &mut Outputs,
 ) {
     let floating: Vec<&str> = readout
@@ -434,7 +422,7 @@ pub fn write_forming_history(
     let mut comments = vec![
         "ncform run: forming history read on the blank".to_string(),
         format!("case: {} ({})", case.title, case.source),
-        header_status.to_string(),
+        super::form::status_line(status),
         "lift: displacement of a floating tool against its direction (positive when the plies push it back); draw-in: in-plane displacement of the blank's edge midpoints and corners towards the blank's centre (positive inwards)".into(),
         "zones: reference-area-weighted mean and standard deviation over the elements whose reference centroid lies in the window; gamma = I10, E22 = I8 - 1, E_perp = I11 - 1 (paper Section 4)".into(),
     ];
@@ -445,7 +433,7 @@ pub fn write_forming_history(
     let written = write_csv(&path, &comments, &header_refs, &data).map_err(|e| io_err(&path, e));
     files.record(&path, written);
 
-    let incomplete = suffix(header_status);
+    let incomplete = super::plot_suffix(status);
     let x_label = format!("{stroke_label} [mm]");
     let curve = |label: String, f: &dyn Fn(&BlankRow) -> f64| Series {
         label,

@@ -869,7 +869,6 @@ fn run_built(
     .map_err(|e| io_err(&path, e));
     sink.files.record(&path, written);
     write_history(case, &built, out, &sink.history, &report.status, sink.files);
-    let header_status = status_line(&report.status);
     let stroke_label = sink.readout.stroke_tool.map_or_else(
         || "programme fraction".to_string(),
         |t| format!("{} displacement", built.tools[t].spec.name),
@@ -880,7 +879,7 @@ fn run_built(
         &sink.readout,
         &sink.outline_states,
         out,
-        (&header_status, &stroke_label),
+        (&report.status, &stroke_label),
         sink.files,
     );
     let blank_rows: Vec<BlankRow> = sink
@@ -900,7 +899,7 @@ fn run_built(
         &sink.readout,
         &blank_rows,
         out,
-        (&header_status, &stroke_label),
+        (&report.status, &stroke_label),
         sink.files,
     );
     if let Some(records) = &report.records {
@@ -1155,7 +1154,7 @@ fn run_explicit(
 }
 
 /// The status line of the file headers, in programme fractions.
-fn status_line(status: &RunStatus) -> String {
+pub(super) fn status_line(status: &RunStatus) -> String {
     super::status_line(
         status,
         |load| format!("programme fraction {load}"),

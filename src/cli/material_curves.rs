@@ -116,7 +116,19 @@ pub fn curves_law(spec: &MaterialSpec) -> Result<UdNcf, String> {
 /// A message naming the file on I/O failure, or when the set is not a
 /// UD-NCF law.
 pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, String> {
-    let law = curves_law(spec)?;
+    write_law_curves(spec, &curves_law(spec)?, out)
+}
+
+/// As [`write_curves`] for the law [`curves_law`] returned for `spec`.
+///
+/// # Errors
+/// A message naming the file on I/O failure.
+pub fn write_law_curves(
+    spec: &MaterialSpec,
+    law: &UdNcf,
+    out: &Path,
+) -> Result<Vec<PathBuf>, String> {
+    let law = *law;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let io = |path: &Path, e: std::io::Error| format!("{}: {e}", path.display());
     let mut written = Vec::new();

@@ -67,16 +67,13 @@ pub(crate) fn positive_finite(
     parameter: &'static str,
     value: f64,
 ) -> Result<f64, ShapeError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(ShapeError::Parameter {
-            shape,
-            parameter,
-            value,
-            expected: "a positive finite length [mm]".into(),
-        })
-    }
+    finite_length(
+        shape,
+        parameter,
+        value,
+        value > 0.0,
+        "a positive finite length [mm]",
+    )
 }
 
 /// `value` if it is finite and not negative, else the error naming it.
@@ -85,14 +82,32 @@ pub(crate) fn non_negative_finite(
     parameter: &'static str,
     value: f64,
 ) -> Result<f64, ShapeError> {
-    if value.is_finite() && value >= 0.0 {
+    finite_length(
+        shape,
+        parameter,
+        value,
+        value >= 0.0,
+        "a finite length >= 0 [mm]",
+    )
+}
+
+/// `value` if it is finite and `allowed`, else the error naming it and
+/// what was `expected`.
+fn finite_length(
+    shape: &'static str,
+    parameter: &'static str,
+    value: f64,
+    allowed: bool,
+    expected: &str,
+) -> Result<f64, ShapeError> {
+    if value.is_finite() && allowed {
         Ok(value)
     } else {
         Err(ShapeError::Parameter {
             shape,
             parameter,
             value,
-            expected: "a finite length >= 0 [mm]".into(),
+            expected: expected.into(),
         })
     }
 }

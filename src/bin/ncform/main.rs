@@ -299,8 +299,8 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             MaterialCommand::Curves { params, out } => {
                 let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
                 // Bad input (exit 1) apart from a write failure (exit 5).
-                material_curves::curves_law(&spec)?;
-                let written = match material_curves::write_curves(&spec, &out) {
+                let law = material_curves::curves_law(&spec)?;
+                let written = match material_curves::write_law_curves(&spec, &law, &out) {
                     Ok(written) => written,
                     Err(message) => {
                         eprintln!("error: {message}");
