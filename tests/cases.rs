@@ -1276,6 +1276,19 @@ fn explicit_settings_are_checked() {
             "explicit.damping = -1: expected a coefficient ≥ 0 1/s",
         ),
         (
+            append(&explicit, "\n[explicit]\nroving_mass_scaling = 2000.0\n"),
+            "roving_mass_scaling = ",
+            "explicit.roving_mass_scaling = 2000: expected a ratio in [0, 1000]",
+        ),
+        (
+            append(
+                &explicit,
+                "\n[explicit]\nroving_mass_scaling = 10.0\ndamping = 5.0\n",
+            ),
+            "damping = ",
+            "explicit.damping = 5: expected 0 with explicit.roving_mass_scaling",
+        ),
+        (
             append(&explicit, "\n[explicit]\nthreads = -1\n"),
             "threads = ",
             "explicit.threads = -1: expected a count in 0..=1000000",

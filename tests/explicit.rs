@@ -86,6 +86,7 @@ fn solver(model: &MembraneModel) -> Model {
         MembraneOptions {
             check_inversion: true,
             density: Some(RHO),
+            roving_mass_ratio: 0.0,
         },
     )
 }
@@ -1054,6 +1055,7 @@ fn bad_settings_and_models_give_clear_errors() {
         MembraneOptions {
             check_inversion: true,
             density: Some(-1e-9),
+            roving_mass_ratio: 0.0,
         },
     );
     let mut state = ExplicitState::at_rest(dofs.total);
@@ -1193,4 +1195,257 @@ fn driven_dofs_follow_the_smooth_step() {
     assert_eq!(result.records.last().unwrap().load, final_load);
     // The motion does work on the membrane.
     assert!(result.records.last().unwrap().energies.external_work > 0.0);
+}
+
+// ---------------------------------------------------------------------------
+// Roving mass scaling: coupling masses along the rovings
+// ---------------------------------------------------------------------------
+
+/// The membrane with roving mass scaling `kappa` as the case builds it.
+fn solver_with_roving_mass(model: &MembraneModel, kappa: f64) -> Model {
+    Model::membrane(
+        model.clone(),
+        MembraneOptions {
+            check_inversion: true,
+            density: Some(RHO),
+            roving_mass_ratio: kappa,
+        },
+    )
+}
+
+/// The mass matrix of the free dofs with roving mass scaling, assembled
+/// here from its definition (`docs/explicit.md`): the lumped masses plus,
+/// per triangle, `κ ρ t A0/3 (e_i − e_j)(e_i − e_j)ᵀ` per component on its
+/// edge along the rovings (found from the reference geometry: the edge
+/// whose direction is x); the block of the free dofs.
+fn coupled_mass(model: &MembraneModel, dofs: &DofMap, kappa: f64) -> DMatrix<f64> {
+    let lumped = lumped_masses(model);
+    let n = 3 * model.nodes.len();
+    let mut m = DMatrix::zeros(n, n);
+    for d in 0..n {
+        m[(d, d)] = lumped[d / 3];
+    }
+    for (t, r) in model.triangles.iter().zip(&model.references) {
+        let edge = (0..3)
+            .map(|a| (t[a], t[(a + 1) % 3]))
+            .find(|&(i, j)| (model.nodes[i].y - model.nodes[j].y).abs() < 1e-12)
+            .expect("every grid triangle has an edge along x");
+        let (i, j) = edge;
+        let mu = kappa * RHO * model.thickness * r.area / 3.0;
+        for k in 0..3 {
+            let (a, b) = (3 * i + k, 3 * j + k);
+            m[(a, a)] += mu;
+            m[(b, b)] += mu;
+            m[(a, b)] -= mu;
+            m[(b, a)] -= mu;
+        }
+    }
+    DMatrix::from_fn(dofs.free.len(), dofs.free.len(), |r, c| {
+        m[(dofs.free[r], dofs.free[c])]
+    })
+}
+
+/// Modes of `K y = ω² M y` on the free dofs for a full mass matrix `M =
+/// L Lᵀ`: `L⁻¹ K L⁻ᵀ = Y Λ Yᵀ`, modal coordinates `Yᵀ Lᵀ w`.
+struct CoupledModes {
+    free: Vec<usize>,
+    l_transpose: DMatrix<f64>,
+    omega2: Vec<f64>,
+    vectors: DMatrix<f64>,
+}
+
+impl CoupledModes {
+    fn new(model: &MembraneModel, dofs: &DofMap, mass: DMatrix<f64>) -> Self {
+        let k = stiffness(model);
+        let free = dofs.free.clone();
+        let k_free = DMatrix::from_fn(free.len(), free.len(), |i, j| k[(free[i], free[j])]);
+        let l = mass.cholesky().expect("positive definite mass").l();
+        let l_inv = l.clone().try_inverse().expect("regular");
+        let a = &l_inv * k_free * l_inv.transpose();
+        let eigen = SymmetricEigen::new(0.5 * (&a + a.transpose()));
+        let mut order: Vec<usize> = (0..free.len()).collect();
+        order.sort_by(|&i, &j| eigen.eigenvalues[i].total_cmp(&eigen.eigenvalues[j]));
+        Self {
+            omega2: order.iter().map(|&i| eigen.eigenvalues[i]).collect(),
+            vectors: DMatrix::from_fn(free.len(), free.len(), |r, c| {
+                eigen.eigenvectors[(r, order[c])]
+            }),
+            l_transpose: l.transpose(),
+            free,
+        }
+    }
+
+    fn omega_max(&self) -> f64 {
+        self.omega2.last().expect("free dofs").sqrt()
+    }
+
+    /// Energy per mode of a velocity: `½ η_j²`, `η = Yᵀ Lᵀ v`.
+    fn velocity_energies(&self, v: &[f64]) -> Vec<f64> {
+        let w = DVector::from_iterator(self.free.len(), self.free.iter().map(|&d| v[d]));
+        let eta = self.vectors.transpose() * (&self.l_transpose * w);
+        eta.iter().map(|e| 0.5 * e * e).collect()
+    }
+}
+
+/// A fibre-dominated SVK law (the rovings 100 times stiffer than the
+/// rest), where roving mass scaling is meant to act.
+fn svk_rovings() -> Material {
+    svk(1000.0, 10.0, 0.3, 5.0)
+}
+
+/// Requirement: with roving mass scaling the estimated critical step
+/// still bounds the exact `2/ω_max` of `K y = ω² M y` with the coupled
+/// mass matrix from below (the element-by-element bound holds for any
+/// split of `M` into element shares, and the solver's shares sum to the
+/// matrix assembled here), and the coupling masses lengthen it.
+///
+/// Bounds used: the estimate ≤ exact up to the 1e-10 finite-difference
+/// error of `K`; the same `1/√6` lower limit as the lumped case
+/// (`stable_step_estimate_bounds_the_exact_critical_step`: the argument
+/// uses only the trace of `K_e` over the node masses, which the coupling
+/// masses only raise).
+#[test]
+fn roving_mass_step_bounds_the_exact_critical_step() {
+    let model = grid(4, 2, 5.0, 5.0, svk_rovings());
+    let dofs = clamp_left_edge(&model);
+    let u = vec![0.0; dofs.total];
+    let kappa = 10.0;
+    let lumped = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, 0.0));
+    let coupled = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, kappa));
+    let estimate = |kappa: f64| {
+        let mut m = solver_with_roving_mass(&model, kappa);
+        let system = ExplicitSystem::new(&mut m, &dofs, None, &State::at(&u)).unwrap();
+        system.critical_time_step(&m, &State::at(&u)).unwrap()
+    };
+    let (est_lumped, est_coupled) = (estimate(0.0), estimate(kappa));
+    let (exact_lumped, exact_coupled) = (2.0 / lumped.omega_max(), 2.0 / coupled.omega_max());
+    eprintln!(
+        "roving mass κ = {kappa}: exact step {exact_lumped:.4e} → {exact_coupled:.4e} s (×{:.2}), estimate {est_lumped:.4e} → {est_coupled:.4e} s (×{:.2})",
+        exact_coupled / exact_lumped,
+        est_coupled / est_lumped
+    );
+    assert!(est_coupled <= exact_coupled * (1.0 + 1e-8));
+    assert!(est_coupled >= exact_coupled / 6f64.sqrt());
+    // The coupling masses only add mass: no step gets shorter.
+    assert!(exact_coupled >= exact_lumped * (1.0 - 1e-10));
+    assert!(est_coupled > est_lumped);
+}
+
+/// Requirement: with roving mass scaling the undamped vibration keeps its
+/// energy, with the kinetic energy `½ vᵀ M v` of the coupled mass.
+///
+/// As `undamped_vibration_conserves_energy_svk`, with the modes of the
+/// coupled mass: from a pure velocity each mode keeps
+/// `E_j ∈ [E_j0, E_j0/(1 − q_j)]`, so the balance error is at most
+/// `Σ q_j/(1 − q_j) E_j0 / E0`, plus 1e-5 for the geometric nonlinearity.
+/// The solver's initial kinetic energy must be `½ v0ᵀ M v0` (the modal
+/// sum, to the round-off of the decomposition): without the couplings'
+/// part it would be off by the coupled share.
+#[test]
+fn undamped_vibration_conserves_energy_with_roving_mass() {
+    let model = grid(4, 2, 5.0, 5.0, svk_rovings());
+    let dofs = clamp_left_edge(&model);
+    let kappa = 10.0;
+    let modes = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, kappa));
+    let zero = vec![0.0; dofs.total];
+    let mut m = solver_with_roving_mass(&model, kappa);
+    let system = ExplicitSystem::new(&mut m, &dofs, None, &State::at(&zero)).unwrap();
+    assert!(system.has_mass_couplings());
+    let dt = 0.9 * system.critical_time_step(&m, &State::at(&zero)).unwrap();
+    let omega_1 = modes.omega2[0].sqrt();
+    let v0 = random_free(&dofs, 1e-6 * omega_1, 4);
+    let energies = modes.velocity_energies(&v0);
+    let e0: f64 = energies.iter().sum();
+    let bound: f64 = energies
+        .iter()
+        .zip(&modes.omega2)
+        .map(|(e, w2)| {
+            let q = w2 * dt * dt / 4.0;
+            q / (1.0 - q) * e
+        })
+        .sum::<f64>()
+        / e0;
+    let steps = 4000;
+    let (times, control) = every_step(dt, steps);
+    let params = parameters(steps as f64 * dt, control);
+    let mut state = ExplicitState { u: zero, v: v0 };
+    let result = solve_explicit(
+        &mut solver_with_roving_mass(&model, kappa),
+        &dofs,
+        &params,
+        0.0,
+        &times,
+        &mut state,
+        |_, _: &Snapshot| {},
+    )
+    .expect("the run starts");
+    assert_eq!(result.status, RunStatus::Complete);
+    let first = &result.records[0];
+    let initial = mechanical(first) - first.energies.balance_error;
+    assert!(
+        (initial / e0 - 1.0).abs() < 1e-9,
+        "E0 {initial:e} vs ½ v0ᵀ M v0 = {e0:e}"
+    );
+    let lumped: f64 = {
+        let m = lumped_masses(&model);
+        dofs.free
+            .iter()
+            .map(|&d| 0.5 * m[d / 3] * state_v0(&dofs, omega_1)[d].powi(2))
+            .sum()
+    };
+    // The couplings carry a visible share of the random velocity's energy.
+    assert!(e0 > 1.05 * lumped, "coupled {e0:e} vs lumped {lumped:e}");
+    let worst = result.max_relative_balance_error;
+    eprintln!(
+        "energy (roving mass κ = {kappa}): ωmaxΔt = {:.3}, worst balance error {worst:.3e} (bound {bound:.3e})",
+        modes.omega_max() * dt
+    );
+    assert!(worst <= bound + 1e-5, "balance error {worst:e} > {bound:e}");
+}
+
+/// The initial velocity of `undamped_vibration_conserves_energy_with_roving_mass`.
+fn state_v0(dofs: &DofMap, omega_1: f64) -> Vec<f64> {
+    random_free(dofs, 1e-6 * omega_1, 4)
+}
+
+/// Requirement: roving mass scaling on a mesh without an edge along the
+/// rovings in every triangle is refused, naming the triangle.
+#[test]
+fn roving_mass_needs_an_edge_along_the_rovings() {
+    let nodes = vec![
+        Vector3::new(0.0, 0.0, 0.0),
+        Vector3::new(10.0, 3.0, 0.0),
+        Vector3::new(2.0, 8.0, 0.0),
+    ];
+    let model = MembraneModel::new(
+        nodes,
+        vec![[0, 1, 2]],
+        &[Vector3::x()],
+        svk_rovings(),
+        THICKNESS,
+    )
+    .expect("model");
+    let dofs = DofMap::new(3, &[]);
+    let params = parameters(
+        1e-6,
+        TimeStepControl::Stable {
+            safety_factor: 0.9,
+            update_interval: 100,
+        },
+    );
+    let err = solve_explicit(
+        &mut solver_with_roving_mass(&model, 5.0),
+        &dofs,
+        &params,
+        0.0,
+        &[],
+        &mut ExplicitState::at_rest(9),
+        |_, _: &Snapshot| {},
+    )
+    .expect_err("no roving edge");
+    let text = err.to_string();
+    assert!(
+        text.contains("element 0") && text.contains("along the rovings"),
+        "{text}"
+    );
 }

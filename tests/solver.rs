@@ -226,6 +226,7 @@ fn planar(model: &MembraneModel) -> Model {
         MembraneOptions {
             check_inversion: true,
             density: None,
+            roving_mass_ratio: 0.0,
         },
     )
 }

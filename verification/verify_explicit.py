@@ -22,6 +22,10 @@ quasi-static curves. The issue's criteria:
 * `energy-balance`: |IE + KE + damping - W_ext - E0| below 1 % of the
   largest energy at every output (energy.csv); central differences conserve
   energy to O((omega dt)^2) per unit energy, far below that.
+* `roving-mass/...`: the same checks for the explicit run with
+  `roving_mass_scaling = 10` (docs/explicit.md, "Roving mass scaling"):
+  the coupling masses along the rovings lengthen the step about 4.5 times
+  and must leave the quasi-static curves within the same limits.
 * `outputs`: the explicit run writes the same files as the quasi-static one,
   plus energy.csv/png, and the units in every CSV header.
 
@@ -75,6 +79,54 @@ def rms_relative(x_ref, y_ref, x, y):
     return float(np.sqrt(np.mean((interp - y_ref) ** 2)) / peak)
 
 
+def compare(label, qs_out, ex_out):
+    """The checks of one explicit run against the quasi-static one."""
+    _, qs_force = read_csv(os.path.join(qs_out, "force_displacement.csv"))
+    ex_header, ex_force = read_csv(os.path.join(ex_out, "force_displacement.csv"))
+    d_ref, f_ref = qs_force[:, 0], qs_force[:, 1]
+    window = (d_ref > 0) & (d_ref <= 80.0 + 1e-9)
+    err = rms_relative(d_ref[window], f_ref[window], ex_force[:, 0], ex_force[:, 1])
+    check(f"{label}force-rms", err <= 0.02,
+          f"clamp force RMS difference {100 * err:.3f} % of the peak "
+          f"{np.max(f_ref):.4f} N over {window.sum()} quasi-static points (limit 2 %)")
+    for d in (20.0, 40.0, 60.0, 80.0):
+        fq = np.interp(d, d_ref, f_ref)
+        fe = np.interp(d, ex_force[:, 0], ex_force[:, 1])
+        print(f"#   F({d:.0f} mm): quasi-static {fq:.4f} N, explicit {fe:.4f} N "
+              f"({100 * (fe - fq) / fq:+.2f} %)")
+
+    _, qs_mdz = read_csv(os.path.join(qs_out, "mdz_strains.csv"))
+    _, ex_mdz = read_csv(os.path.join(ex_out, "mdz_strains.csv"))
+    for col, name in ((1, "E22"), (2, "shear angle"), (3, "E_perp")):
+        err = rms_relative(qs_mdz[window, 0], qs_mdz[window, col], ex_mdz[:, 0], ex_mdz[:, col])
+        check(f"{label}mdz-rms", err <= 0.02,
+              f"MDZ {name}: RMS difference {100 * err:.3f} % of the peak "
+              f"{np.max(np.abs(qs_mdz[:, col])):.4g} (limit 2 %)")
+
+    with open(os.path.join(ex_out, "summary.json")) as f:
+        summary = json.load(f)
+    explicit = summary["explicit"]
+    e_header, energy = read_csv(os.path.join(ex_out, "energy.csv"))
+    col = {h: i for i, h in enumerate(e_header)}
+    disp = energy[:, col["displacement [mm]"]]
+    ie = energy[:, col["internal [N*mm]"]]
+    ke = energy[:, col["kinetic [N*mm]"]]
+    late = disp >= 0.1 * 80.0
+    ratio = float(np.max(ke[late] / ie[late]))
+    check(f"{label}kinetic", ratio < 0.01 and explicit["max_kinetic_ratio"] < 0.01,
+          f"max KE/IE from 8 mm on: {100 * ratio:.3f} % (energy.csv), "
+          f"{100 * explicit['max_kinetic_ratio']:.3f} % (summary.json); limit 1 %")
+    balance = float(np.max(np.abs(energy[:, col["relative balance error [-]"]])))
+    check(f"{label}energy-balance", balance < 0.01,
+          f"largest relative energy-balance error {balance:.2e} (limit 1e-2)")
+    w_end = energy[-1, col["external work [N*mm]"]]
+    print(f"# explicit: {explicit['increments']} increments, "
+          f"{explicit['element_cycles_per_second'] / 1e6:.1f} M element-cycles/s on "
+          f"{explicit['threads']} threads, critical step "
+          f"{explicit['initial_critical_time_step']:.3e} s, W_ext(80 mm) = {w_end:.3f} N*mm, "
+          f"wall {summary['wall_seconds']:.1f} s")
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--ncform", required=True)
@@ -94,50 +146,20 @@ def main():
         print(f"CHECK-SUMMARY passed={sum(results)} failed={len(results) - sum(results)}")
         return 1
 
-    _, qs_force = read_csv(os.path.join(qs_out, "force_displacement.csv"))
-    ex_header, ex_force = read_csv(os.path.join(ex_out, "force_displacement.csv"))
-    d_ref, f_ref = qs_force[:, 0], qs_force[:, 1]
-    window = (d_ref > 0) & (d_ref <= 80.0 + 1e-9)
-    err = rms_relative(d_ref[window], f_ref[window], ex_force[:, 0], ex_force[:, 1])
-    check("force-rms", err <= 0.02,
-          f"clamp force RMS difference {100 * err:.3f} % of the peak "
-          f"{np.max(f_ref):.4f} N over {window.sum()} quasi-static points (limit 2 %)")
-    for d in (20.0, 40.0, 60.0, 80.0):
-        fq = np.interp(d, d_ref, f_ref)
-        fe = np.interp(d, ex_force[:, 0], ex_force[:, 1])
-        print(f"#   F({d:.0f} mm): quasi-static {fq:.4f} N, explicit {fe:.4f} N "
-              f"({100 * (fe - fq) / fq:+.2f} %)")
+    compare("", qs_out, ex_out)
 
-    _, qs_mdz = read_csv(os.path.join(qs_out, "mdz_strains.csv"))
-    _, ex_mdz = read_csv(os.path.join(ex_out, "mdz_strains.csv"))
-    for col, name in ((1, "E22"), (2, "shear angle"), (3, "E_perp")):
-        err = rms_relative(qs_mdz[window, 0], qs_mdz[window, col], ex_mdz[:, 0], ex_mdz[:, col])
-        check("mdz-rms", err <= 0.02,
-              f"MDZ {name}: RMS difference {100 * err:.3f} % of the peak "
-              f"{np.max(np.abs(qs_mdz[:, col])):.4g} (limit 2 %)")
-
-    with open(os.path.join(ex_out, "summary.json")) as f:
-        summary = json.load(f)
-    explicit = summary["explicit"]
-    e_header, energy = read_csv(os.path.join(ex_out, "energy.csv"))
-    col = {h: i for i, h in enumerate(e_header)}
-    disp = energy[:, col["displacement [mm]"]]
-    ie = energy[:, col["internal [N*mm]"]]
-    ke = energy[:, col["kinetic [N*mm]"]]
-    late = disp >= 0.1 * 80.0
-    ratio = float(np.max(ke[late] / ie[late]))
-    check("kinetic", ratio < 0.01 and explicit["max_kinetic_ratio"] < 0.01,
-          f"max KE/IE from 8 mm on: {100 * ratio:.3f} % (energy.csv), "
-          f"{100 * explicit['max_kinetic_ratio']:.3f} % (summary.json); limit 1 %")
-    balance = float(np.max(np.abs(energy[:, col["relative balance error [-]"]])))
-    check("energy-balance", balance < 0.01,
-          f"largest relative energy-balance error {balance:.2e} (limit 1e-2)")
-    w_end = energy[-1, col["external work [N*mm]"]]
-    print(f"# explicit: {explicit['increments']} increments, "
-          f"{explicit['element_cycles_per_second'] / 1e6:.1f} M element-cycles/s on "
-          f"{explicit['threads']} threads, critical step "
-          f"{explicit['initial_critical_time_step']:.3e} s, W_ext(80 mm) = {w_end:.3f} N*mm, "
-          f"wall {summary['wall_seconds']:.1f} s")
+    # The same run with roving mass scaling (docs/explicit.md): the same
+    # limits must hold with about 4.5 times fewer increments.
+    with open(os.path.join(REPO, "cases", "oat45-explicit.toml")) as f:
+        text = f.read()
+    roving_case = os.path.join(work, "oat45-explicit-roving.toml")
+    with open(roving_case, "w") as f:
+        f.write(text.replace("[explicit]\n", "[explicit]\nroving_mass_scaling = 10.0\n", 1))
+    roving_out = os.path.join(work, "explicit-roving")
+    rc_rm = run(args.ncform, roving_case, roving_out)
+    check("roving-mass/runs", rc_rm == 0, f"the run with roving_mass_scaling = 10 completes (exit {rc_rm})")
+    if rc_rm == 0:
+        compare("roving-mass/", qs_out, roving_out)
 
     expected = {"force_displacement.csv", "force_displacement.png", "mdz_strains.csv",
                 "mdz_strains.png", "contours.png", "oat.pvd", "summary.json", "vtu"}

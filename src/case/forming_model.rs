@@ -422,6 +422,7 @@ impl FormingCase {
                 MembraneOptions {
                     check_inversion: false,
                     density: spec.density,
+                    roving_mass_ratio: self.explicit.roving_mass_scaling,
                 },
             ));
             // Nodes no triangle uses carry no stiffness: fix them.

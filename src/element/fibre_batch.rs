@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use super::ElementFailureKind;
-use super::fibre_triangle::{FibreTriangle, FibreTriangles, LaneStress};
+use super::fibre_triangle::{FibreTriangle, FibreTriangles, LaneStress, RovingMass};
 use super::membrane::MembraneReference;
 use crate::material::lanes::Real;
 #[cfg(target_arch = "x86_64")]
@@ -276,7 +276,8 @@ impl FibreMesh {
     }
 
     /// The bound of `ω²` of triangle `e` at `u` with density `density`
-    /// [t/mm³] ([`FibreTriangle::max_frequency_squared`]).
+    /// [t/mm³], with the roving mass `roving` if given
+    /// ([`FibreTriangle::max_frequency_squared_with`]).
     ///
     /// # Errors
     /// When the law rejects the state.
@@ -286,8 +287,9 @@ impl FibreMesh {
         law: &Material,
         u: &[f64],
         density: f64,
+        roving: Option<RovingMass>,
     ) -> Result<f64, MaterialError> {
-        self.elements[e].max_frequency_squared(&self.displacements(e, u), law, density)
+        self.elements[e].max_frequency_squared_with(&self.displacements(e, u), law, density, roving)
     }
 
     /// Strain energy `t A0 W` of triangle `e` at `u` [N·mm].

@@ -52,6 +52,22 @@ pub struct FibreTriangleForce {
     pub orientation: f64,
 }
 
+/// Relative size of `∂N/∂a0` below which a node counts as off the
+/// roving edge ([`FibreTriangle::roving_edge`]).
+pub const ROVING_EDGE_TOLERANCE: f64 = 1e-3;
+
+/// The roving mass of one triangle: the mass share
+/// `(ρ t A0/3) κ (e_i − e_j)(e_i − e_j)ᵀ ⊗ I3` on its roving edge
+/// `[i, j]` (local nodes), `κ = ratio` (`docs/explicit.md`, "Roving mass
+/// scaling").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RovingMass {
+    /// The local nodes of the edge along the rovings.
+    pub edge: [usize; 2],
+    /// `κ`: the added mass per node of the edge over the lumped share.
+    pub ratio: f64,
+}
+
 impl FibreTriangle {
     /// The fibre-basis form of a triangle set up by [`MembraneReference`],
     /// for a membrane of thickness `thickness` \[mm\].
@@ -161,22 +177,76 @@ impl FibreTriangle {
         material: &M,
         density: f64,
     ) -> Result<f64, MaterialError> {
+        self.max_frequency_squared_with(u, material, density, None)
+    }
+
+    /// The two local nodes of the edge that runs along the rovings: the
+    /// edge opposite the node whose `∇N` has no component along `a0`
+    /// (within `1e-3` of the largest), or `None` when no edge does.
+    pub fn roving_edge(&self) -> Option<[usize; 2]> {
+        let along = self.grad.map(|g| g[0].abs());
+        let largest = along.iter().fold(0.0_f64, |m, a| m.max(*a));
+        let off = (0..3).find(|&k| along[k] <= ROVING_EDGE_TOLERANCE * largest)?;
+        Some([(off + 1) % 3, (off + 2) % 3])
+    }
+
+    /// [`FibreTriangle::max_frequency_squared`] with the element's mass
+    /// share `(ρ t A0/3) (I + κ d dᵀ) ⊗ I3` when `roving` is given
+    /// (`d = e_i − e_j` on the roving edge, `κ = roving.ratio`: roving mass
+    /// scaling, `docs/explicit.md`). Its inverse is
+    /// `(3/(ρ t A0)) W ⊗ I3` with `W = I − κ/(1 + 2κ) d dᵀ`, so the bound
+    /// keeps its form with the node sums `Σ_a x_a y_a` of `B Bᵀ` and `DᵀD`
+    /// replaced by `xᵀ W y`. Any `d` and `κ ≥ 0` give a bound for the mass
+    /// the solver assembles from the same shares.
+    ///
+    /// # Errors
+    /// When the law rejects the state.
+    pub fn max_frequency_squared_with<M: MembraneMaterial + ?Sized>(
+        &self,
+        u: &[[f64; 3]; 3],
+        material: &M,
+        density: f64,
+        roving: Option<RovingMass>,
+    ) -> Result<f64, MaterialError> {
         let (g1, g2) = self.deformation(u);
         let c = Self::right_cauchy_green(&g1, &g2);
         let (state, tangent) = material.stress_tangent(&c, &FibreFrame::aligned())?;
         let (c11, c22, c12) = (c[0], c[1], c[2]);
         let mut bbt = Matrix3::<f64>::zeros();
         let mut dtd = Matrix2::<f64>::zeros();
-        for grad in &self.grad {
-            let (n1, n2) = (grad[0], grad[1]);
-            bbt[(0, 0)] += n1 * n1 * c11;
-            bbt[(1, 1)] += n2 * n2 * c22;
-            bbt[(2, 2)] += n2 * n2 * c11 + 2.0 * n1 * n2 * c12 + n1 * n1 * c22;
-            bbt[(0, 1)] += n1 * n2 * c12;
-            bbt[(0, 2)] += n1 * (n2 * c11 + n1 * c12);
-            bbt[(1, 2)] += n2 * (n2 * c12 + n1 * c22);
-            let g = Vector2::new(n1, n2);
-            dtd += g * g.transpose();
+        match roving {
+            None => {
+                for grad in &self.grad {
+                    let (n1, n2) = (grad[0], grad[1]);
+                    bbt[(0, 0)] += n1 * n1 * c11;
+                    bbt[(1, 1)] += n2 * n2 * c22;
+                    bbt[(2, 2)] += n2 * n2 * c11 + 2.0 * n1 * n2 * c12 + n1 * n1 * c22;
+                    bbt[(0, 1)] += n1 * n2 * c12;
+                    bbt[(0, 2)] += n1 * (n2 * c11 + n1 * c12);
+                    bbt[(1, 2)] += n2 * (n2 * c12 + n1 * c22);
+                    let g = Vector2::new(n1, n2);
+                    dtd += g * g.transpose();
+                }
+            }
+            Some(RovingMass {
+                edge: [i, j],
+                ratio,
+            }) => {
+                let n1: [f64; 3] = self.grad.map(|g| g[0]);
+                let n2: [f64; 3] = self.grad.map(|g| g[1]);
+                let w = ratio / (1.0 + 2.0 * ratio);
+                let (d1, d2) = (n1[i] - n1[j], n2[i] - n2[j]);
+                let p11 = dot(&n1, &n1) - w * d1 * d1;
+                let p22 = dot(&n2, &n2) - w * d2 * d2;
+                let p12 = dot(&n1, &n2) - w * d1 * d2;
+                bbt[(0, 0)] = p11 * c11;
+                bbt[(1, 1)] = p22 * c22;
+                bbt[(2, 2)] = p22 * c11 + 2.0 * p12 * c12 + p11 * c22;
+                bbt[(0, 1)] = p12 * c12;
+                bbt[(0, 2)] = p12 * c11 + p11 * c12;
+                bbt[(1, 2)] = p22 * c12 + p12 * c22;
+                dtd = Matrix2::new(p11, p12, p12, p22);
+            }
         }
         bbt[(1, 0)] = bbt[(0, 1)];
         bbt[(2, 0)] = bbt[(0, 2)];

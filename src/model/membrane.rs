@@ -10,9 +10,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::term::{MassScaling, Masses, State, Stencils, Term, TermEnergy, TermFailure};
+use super::term::{
+    MassCoupling, MassScaling, Masses, State, Stencils, Term, TermEnergy, TermFailure,
+};
 use crate::element::membrane::ReferenceError;
-use crate::element::{ElementFailureKind, FibreMesh, MembraneReference};
+use crate::element::{ElementFailureKind, FibreMesh, MembraneReference, RovingMass};
 use crate::material::Material;
 
 /// Smallest run of elements one rayon task takes in the element loops.
@@ -85,6 +87,11 @@ pub struct MembraneOptions {
     /// Mass density `ρ` [t/mm³] for the explicit path (areal mass /
     /// thickness); `None` for a quasi-static-only model.
     pub density: Option<f64>,
+    /// Roving mass scaling `κ` for the explicit path (0: off): every
+    /// triangle adds `κ` times its lumped node share as a coupling mass on
+    /// its edge along the rovings ([`crate::element::RovingMass`],
+    /// `docs/explicit.md`, "Roving mass scaling").
+    pub roving_mass_ratio: f64,
 }
 
 /// The membrane of one ply as a force term.
@@ -99,6 +106,9 @@ pub struct MembraneTerm {
     element_density: Vec<f64>,
     /// Per-element energies, summed in element order.
     energies: Vec<f64>,
+    /// Per element, its edge along the rovings (local nodes), when roving
+    /// mass scaling is on (empty otherwise).
+    roving_edges: Vec<Option<[usize; 2]>>,
 }
 
 impl MembraneTerm {
@@ -111,7 +121,13 @@ impl MembraneTerm {
             membrane.thickness,
         );
         let n = membrane.triangles.len();
+        let roving_edges = if options.roving_mass_ratio > 0.0 {
+            fibre.elements.iter().map(|el| el.roving_edge()).collect()
+        } else {
+            Vec::new()
+        };
         Self {
+            roving_edges,
             name: name.into(),
             element_density: options.density.map_or_else(Vec::new, |rho| vec![rho; n]),
             options,
@@ -119,6 +135,16 @@ impl MembraneTerm {
             membrane,
             energies: vec![0.0; n],
         }
+    }
+
+    /// The roving mass of element `e` (`None` without roving mass scaling).
+    #[inline]
+    fn roving_mass(&self, e: usize) -> Option<RovingMass> {
+        let edge = (*self.roving_edges.get(e)?)?;
+        Some(RovingMass {
+            edge,
+            ratio: self.options.roving_mass_ratio,
+        })
     }
 
     /// The options the term was built with.
@@ -188,7 +214,7 @@ impl MembraneTerm {
             .with_min_len(ELEMENT_MIN_LEN)
             .map(|e| {
                 self.fibre
-                    .frequency(e, law, u, self.element_density[e])
+                    .frequency(e, law, u, self.element_density[e], self.roving_mass(e))
                     .unwrap_or(f64::INFINITY)
             })
             .collect();
@@ -204,7 +230,7 @@ impl MembraneTerm {
     fn frequency_failure(&self, u: &[f64]) -> TermFailure {
         let law = &self.membrane.material;
         let found = (0..self.fibre.elements.len()).find_map(|e| {
-            match self.fibre.frequency(e, law, u, self.element_density[e]) {
+            match self.fibre.frequency(e, law, u, self.element_density[e], self.roving_mass(e)) {
                 Ok(w2) if w2.is_finite() => None,
                 Ok(_) => Some(self.failure_reason(
                     e,
@@ -361,8 +387,38 @@ impl Term for MembraneTerm {
         })
     }
 
+    /// The density, and with roving mass scaling an edge along the
+    /// rovings in every triangle.
     fn validate_explicit(&self) -> Result<(), TermFailure> {
-        self.density_or_error()
+        self.density_or_error()?;
+        let ratio = self.options.roving_mass_ratio;
+        if !(ratio.is_finite() && ratio >= 0.0) {
+            return Err(self.failure_reason(
+                0,
+                format!("roving mass ratio {ratio}: expected a finite number ≥ 0"),
+            ));
+        }
+        if let Some(e) = self.roving_edges.iter().position(Option::is_none) {
+            return Err(self.failure_reason(
+                e,
+                "no edge of this triangle runs along the rovings: roving mass scaling needs a mesh with an edge of every triangle along them (the generators' aligned patterns; docs/explicit.md)".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Per triangle with a roving edge, `κ ρ_e t A0 / 3` on that edge.
+    fn mass_couplings(&self, out: &mut Vec<MassCoupling>) {
+        let ratio = self.options.roving_mass_ratio;
+        for (e, edge) in self.roving_edges.iter().enumerate() {
+            if let Some([i, j]) = edge {
+                let nodes = &self.fibre.nodes[e];
+                out.push(MassCoupling {
+                    nodes: [nodes[*i] as usize, nodes[*j] as usize],
+                    mass: ratio * self.element_density[e] * self.fibre.elements[e].volume / 3.0,
+                });
+            }
+        }
     }
 
     /// The batched fibre-basis force pass ([`FibreMesh::forces`]).
@@ -390,7 +446,13 @@ impl Term for MembraneTerm {
             .with_min_len(ELEMENT_MIN_LEN)
             .map(|e| {
                 self.fibre
-                    .frequency(e, law, state.u, self.element_density[e])
+                    .frequency(
+                        e,
+                        law,
+                        state.u,
+                        self.element_density[e],
+                        self.roving_mass(e),
+                    )
                     .unwrap_or(f64::INFINITY)
             })
             .reduce(|| 0.0, f64::max);

@@ -129,6 +129,18 @@ pub struct Masses {
     pub extra: Vec<f64>,
 }
 
+/// A coupling mass between two nodes: `mass (e_a − e_b)(e_a − e_b)ᵀ ⊗ I3`
+/// added to the lumped mass matrix (roving mass scaling,
+/// `docs/explicit.md`). It leaves rigid translations' kinetic energy
+/// unchanged and slows the relative motion of the two nodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MassCoupling {
+    /// The two nodes.
+    pub nodes: [usize; 2],
+    /// The coupling mass \[t\].
+    pub mass: f64,
+}
+
 /// What mass scaling did to one term \[t\].
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct MassScaling {
@@ -243,6 +255,10 @@ pub trait Term: Send + Sync + std::any::Any {
     fn lumped_masses(&self, _masses: &mut Masses) -> f64 {
         0.0
     }
+
+    /// Adds the term's coupling masses (in any order; repeated pairs add
+    /// up); none by default.
+    fn mass_couplings(&self, _out: &mut Vec<MassCoupling>) {}
 
     /// Raises the term's mass where its own stable step at `state` is below
     /// `target` (mass scaling); `safety` is the step's safety factor.

@@ -23,6 +23,7 @@
 //! generalised reaction, damping `∫ α m v² dt`; the balance error is
 //! `IE + KE + D − W − (IE + KE)₀`.
 
+mod chains;
 mod params;
 pub mod system;
 
@@ -356,6 +357,13 @@ fn integrate(
         params.mass_scaling_target.map(|t| (t, safety)),
         &state_at(u, start_load),
     )?;
+    if system.has_mass_couplings() && params.damping > 0.0 {
+        return Err(ExplicitError::Setting(SettingError {
+            name: "damping",
+            value: crate::config::readable_number(params.damping),
+            expected: "0 with coupling masses (roving mass scaling)",
+        }));
+    }
     // Terms whose stiffness follows the step (penalties) pick it from the
     // step of the others, then count in the estimate.
     let without_penalties = system.critical_time_step_of(model, &state_at(u, start_load), false)?;

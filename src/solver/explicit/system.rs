@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::super::dofs::DofMap;
+use super::chains::MassChains;
 use crate::model::{Masses, Model, NO_SLOT, State, TermFailure};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
@@ -25,6 +26,12 @@ pub struct MassSummary {
     pub added_fraction: f64,
     /// Elements whose density was raised.
     pub scaled_elements: usize,
+    /// Nodes on chains of coupling masses (roving mass scaling).
+    pub coupled_nodes: usize,
+    /// Chains of coupling masses.
+    pub chains: usize,
+    /// `Σ μ` of the coupling masses \[t\] (they add no translational mass).
+    pub coupling_mass: f64,
 }
 
 /// Why a model cannot be integrated.
@@ -47,6 +54,14 @@ pub enum SetupError {
     /// A term fails at the initial state.
     #[error("initial state: {0}")]
     Term(TermFailure),
+    /// The terms' coupling masses cannot be solved by chains.
+    #[error("coupling masses at node {node}: {reason}")]
+    MassCoupling {
+        /// The node.
+        node: usize,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 /// Coefficients of one node-pass update (central difference, leapfrog form).
@@ -92,6 +107,11 @@ pub struct ExplicitSystem {
     /// of groups.
     groups: Vec<Option<usize>>,
     group_count: usize,
+    /// The coupling masses along chains (empty without roving mass
+    /// scaling: then the node pass is the fused lumped one).
+    chains: MassChains,
+    /// With coupling masses: the accelerations of one pass (3 per node).
+    accelerations: std::sync::Mutex<Vec<f64>>,
 }
 
 /// Union–find root of `n` with path halving.
@@ -243,6 +263,13 @@ impl ExplicitSystem {
                 });
             }
         }
+        let mut couplings = Vec::new();
+        for term in &model.terms {
+            term.mass_couplings(&mut couplings);
+        }
+        let chains = MassChains::new(&masses.node, &couplings, |n| {
+            std::array::from_fn(|k| per_unit_load[3 * n + k].is_nan())
+        })?;
         let added = total - physical;
         Ok(Self {
             nodes,
@@ -264,10 +291,24 @@ impl ExplicitSystem {
                     0.0
                 },
                 scaled_elements,
+                coupled_nodes: chains.nodes(),
+                chains: chains.count(),
+                coupling_mass: chains.coupling_mass(),
             },
             groups,
             group_count,
+            accelerations: std::sync::Mutex::new(if chains.is_empty() {
+                Vec::new()
+            } else {
+                vec![0.0; 3 * nodes]
+            }),
+            chains,
         })
+    }
+
+    /// Whether the mass matrix has coupling masses (roving mass scaling).
+    pub fn has_mass_couplings(&self) -> bool {
+        !self.chains.is_empty()
     }
 
     /// Length of the force buffer.
@@ -409,6 +450,27 @@ impl ExplicitSystem {
         damping_partial: &mut [f64],
         driven_partial: &mut [f64],
     ) {
+        if !self.chains.is_empty() {
+            self.gather_with_kinetic_coupled(
+                forces,
+                v_half,
+                half_step,
+                internal,
+                kinetic_partial,
+                damping_partial,
+                driven_partial,
+            );
+            self.extras_kinetic(
+                forces,
+                v_half,
+                half_step,
+                damping,
+                &mut internal[3 * self.nodes..],
+                kinetic_partial,
+                damping_partial,
+            );
+            return;
+        }
         let (node_internal, extra_internal) = internal.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
         let (kinetic_nodes, kinetic_extra) = kinetic_partial.split_at_mut(blocks);
@@ -449,6 +511,32 @@ impl ExplicitSystem {
                     *driven_sum = driven;
                 },
             );
+        let _ = (kinetic_extra, damping_extra);
+        self.extras_kinetic(
+            forces,
+            v_half,
+            half_step,
+            damping,
+            extra_internal,
+            kinetic_partial,
+            damping_partial,
+        );
+    }
+
+    /// The extra dofs' part of [`ExplicitSystem::gather_with_kinetic`], in
+    /// the last partial entries.
+    #[allow(clippy::too_many_arguments)]
+    fn extras_kinetic(
+        &self,
+        forces: &[f64],
+        v_half: &[f64],
+        half_step: f64,
+        damping: f64,
+        extra_internal: &mut [f64],
+        kinetic_partial: &mut [f64],
+        damping_partial: &mut [f64],
+    ) {
+        let blocks = self.node_blocks();
         let mut kinetic = 0.0;
         let mut dissipated = 0.0;
         for (k, f_extra) in extra_internal.iter_mut().enumerate() {
@@ -464,8 +552,108 @@ impl ExplicitSystem {
                 dissipated += damping * m * v_mean * v_mean * half_step;
             }
         }
-        kinetic_extra[0] = kinetic;
-        damping_extra[0] = dissipated;
+        kinetic_partial[blocks] = kinetic;
+        damping_partial[blocks] = dissipated;
+    }
+
+    /// Pass A of the coupled node pass: per free dof `−f` on the chains'
+    /// nodes and `−f/m` elsewhere into `accelerations` (prescribed dofs get
+    /// 0), the residual into `internal` if given; then the chains' solve,
+    /// so that `accelerations = M⁻¹(−f)` on every free dof.
+    fn coupled_accelerations(
+        &self,
+        forces: &[f64],
+        accelerations: &mut [f64],
+        internal: Option<&mut [f64]>,
+    ) {
+        let body = |block: usize, a_block: &mut [f64], f_out: Option<&mut [f64]>| {
+            let mut f = [0.0; 3];
+            let mut f_out = f_out;
+            for (i, a_node) in a_block.chunks_exact_mut(3).enumerate() {
+                let node = block * NODE_BLOCK + i;
+                self.gather(forces, node, &mut f);
+                if let Some(out) = f_out.as_deref_mut() {
+                    out[3 * i..3 * i + 3].copy_from_slice(&f);
+                }
+                let scale = if self.chains.on_chain(node) {
+                    1.0
+                } else {
+                    self.inverse_mass[node]
+                };
+                for k in 0..3 {
+                    a_node[k] = if self.per_unit_load[3 * node + k].is_nan() {
+                        -f[k] * scale
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        };
+        match internal {
+            Some(internal) => accelerations
+                .par_chunks_mut(3 * NODE_BLOCK)
+                .zip(internal[..3 * self.nodes].par_chunks_mut(3 * NODE_BLOCK))
+                .enumerate()
+                .for_each(|(block, (a, f))| body(block, a, Some(f))),
+            None => accelerations
+                .par_chunks_mut(3 * NODE_BLOCK)
+                .enumerate()
+                .for_each(|(block, a)| body(block, a, None)),
+        }
+        self.chains.solve(accelerations);
+    }
+
+    /// [`ExplicitSystem::gather_with_kinetic`] with coupling masses (no
+    /// damping: the case refuses it with them): `v_n = v_{n−½} + (Δt/2)
+    /// M⁻¹(−f)` and `½ v_nᵀ M v_n` with the couplings' part, which goes
+    /// into the first block's entry.
+    #[allow(clippy::too_many_arguments)]
+    fn gather_with_kinetic_coupled(
+        &self,
+        forces: &[f64],
+        v_half: &[f64],
+        half_step: f64,
+        internal: &mut [f64],
+        kinetic_partial: &mut [f64],
+        damping_partial: &mut [f64],
+        driven_partial: &mut [f64],
+    ) {
+        let mut guard = self
+            .accelerations
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let velocities = guard.as_mut_slice();
+        self.coupled_accelerations(forces, velocities, Some(internal));
+        let blocks = self.node_blocks();
+        velocities
+            .par_chunks_mut(3 * NODE_BLOCK)
+            .zip(kinetic_partial[..blocks].par_iter_mut())
+            .zip(driven_partial.par_iter_mut())
+            .enumerate()
+            .for_each(|(block, ((a_block, kinetic_sum), driven_sum))| {
+                let mut kinetic = 0.0;
+                let mut driven = 0.0;
+                for (i, a_node) in a_block.chunks_exact_mut(3).enumerate() {
+                    let node = block * NODE_BLOCK + i;
+                    let m = self.masses.node[node];
+                    for (k, a) in a_node.iter_mut().enumerate() {
+                        let dof = 3 * node + k;
+                        let v = v_half[dof];
+                        if self.per_unit_load[dof].is_nan() {
+                            let vn = v + half_step * *a;
+                            kinetic += 0.5 * m * vn * vn;
+                            *a = vn;
+                        } else {
+                            driven += 0.5 * m * v * v;
+                            *a = v;
+                        }
+                    }
+                }
+                *kinetic_sum = kinetic;
+                *driven_sum = driven;
+            });
+        kinetic_partial[0] += self.chains.coupling_kinetic_energy(velocities);
+        damping_partial[..blocks].fill(0.0);
     }
 
     /// Node pass, fused: gathers `f_n`, then per free dof
@@ -490,6 +678,10 @@ impl ExplicitSystem {
         } = step;
         let keep = 1.0 - 0.5 * alpha * h;
         let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
+        if !self.chains.is_empty() {
+            self.update_coupled(forces, u, v, partial, step);
+            return;
+        }
         let (u_nodes, u_extra) = u.split_at_mut(3 * self.nodes);
         let (v_nodes, v_extra) = v.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
@@ -530,6 +722,95 @@ impl ExplicitSystem {
                 }
                 *sum = dissipated;
             });
+        partial_extra[0] = self.update_extras(forces, u_extra, v_extra, step);
+    }
+
+    /// The node pass with coupling masses: pass A and the chains' solve
+    /// ([`ExplicitSystem::coupled_accelerations`]), then per free dof
+    /// `v_{n+½} = ((1 − αh/2) v_{n−½} + h a) / (1 + αh/2)` (α = 0 with
+    /// couplings: the case refuses damping with them), the prescribed dofs
+    /// and the extra dofs as in [`ExplicitSystem::update`].
+    fn update_coupled(
+        &self,
+        forces: &[f64],
+        u: &mut [f64],
+        v: &mut [f64],
+        partial: &mut [f64],
+        step: Update,
+    ) {
+        let Update {
+            velocity_step: h,
+            time_step: dt,
+            damping: alpha,
+            load_next,
+        } = step;
+        let keep = 1.0 - 0.5 * alpha * h;
+        let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
+        let mut guard = self
+            .accelerations
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let accelerations = guard.as_mut_slice();
+        self.coupled_accelerations(forces, accelerations, None);
+        let (u_nodes, u_extra) = u.split_at_mut(3 * self.nodes);
+        let (v_nodes, v_extra) = v.split_at_mut(3 * self.nodes);
+        let blocks = self.node_blocks();
+        let (partial_nodes, partial_extra) = partial.split_at_mut(blocks);
+        u_nodes
+            .par_chunks_mut(3 * NODE_BLOCK)
+            .zip(v_nodes.par_chunks_mut(3 * NODE_BLOCK))
+            .zip(accelerations.par_chunks(3 * NODE_BLOCK))
+            .zip(partial_nodes.par_iter_mut())
+            .enumerate()
+            .for_each(|(block, (((u_block, v_block), a_block), sum))| {
+                let mut dissipated = 0.0;
+                let first = block * NODE_BLOCK;
+                for (i, ((u_node, v_node), a_node)) in u_block
+                    .chunks_exact_mut(3)
+                    .zip(v_block.chunks_exact_mut(3))
+                    .zip(a_block.chunks_exact(3))
+                    .enumerate()
+                {
+                    let node = first + i;
+                    let m = self.masses.node[node];
+                    for k in 0..3 {
+                        let p = self.per_unit_load[3 * node + k];
+                        if p.is_nan() {
+                            let v_old = v_node[k];
+                            let v_new = (keep * v_old + h * a_node[k]) * inv_scale;
+                            v_node[k] = v_new;
+                            u_node[k] += dt * v_new;
+                            let v_mean = 0.5 * (v_old + v_new);
+                            dissipated += alpha * m * v_mean * v_mean * h;
+                        } else {
+                            let u_new = p * load_next;
+                            v_node[k] = (u_new - u_node[k]) / dt;
+                            u_node[k] = u_new;
+                        }
+                    }
+                }
+                *sum = dissipated;
+            });
+        partial_extra[0] = self.update_extras(forces, u_extra, v_extra, step);
+    }
+
+    /// The extra dofs' update of the node pass; returns the energy the
+    /// damping took from them.
+    fn update_extras(
+        &self,
+        forces: &[f64],
+        u_extra: &mut [f64],
+        v_extra: &mut [f64],
+        step: Update,
+    ) -> f64 {
+        let Update {
+            velocity_step: h,
+            time_step: dt,
+            damping: alpha,
+            load_next,
+        } = step;
+        let keep = 1.0 - 0.5 * alpha * h;
+        let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
         let mut dissipated = 0.0;
         for (k, (uk, vk)) in u_extra.iter_mut().zip(v_extra.iter_mut()).enumerate() {
             let f = self.gather_extra(forces, k);
@@ -548,7 +829,7 @@ impl ExplicitSystem {
                 *uk = u_new;
             }
         }
-        partial_extra[0] = dissipated;
+        dissipated
     }
 
     /// Number of node blocks.
