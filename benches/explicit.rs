@@ -103,7 +103,7 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
         MembraneOptions {
             check_inversion: true,
             density: Some(DENSITY),
-            roving_mass_ratio: 0.0,
+            roving_mass_length: 0.0,
         },
     );
     if forming {

@@ -1276,17 +1276,17 @@ fn explicit_settings_are_checked() {
             "explicit.damping = -1: expected a coefficient ≥ 0 1/s",
         ),
         (
-            append(&explicit, "\n[explicit]\nroving_mass_scaling = 2000.0\n"),
-            "roving_mass_scaling = ",
-            "explicit.roving_mass_scaling = 2000: expected a ratio in [0, 1000]",
+            append(&explicit, "\n[explicit]\nroving_mass_length = 2000.0\n"),
+            "roving_mass_length = ",
+            "explicit.roving_mass_length = 2000: expected a length in [0, 1000] mm",
         ),
         (
             append(
                 &explicit,
-                "\n[explicit]\nroving_mass_scaling = 10.0\ndamping = 5.0\n",
+                "\n[explicit]\nroving_mass_length = 6.5\ndamping = 5.0\n",
             ),
             "damping = ",
-            "explicit.damping = 5: expected 0 with explicit.roving_mass_scaling",
+            "explicit.damping = 5: expected 0 with explicit.roving_mass_length",
         ),
         (
             append(&explicit, "\n[explicit]\nthreads = -1\n"),

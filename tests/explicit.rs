@@ -86,7 +86,7 @@ fn solver(model: &MembraneModel) -> Model {
         MembraneOptions {
             check_inversion: true,
             density: Some(RHO),
-            roving_mass_ratio: 0.0,
+            roving_mass_length: 0.0,
         },
     )
 }
@@ -1055,7 +1055,7 @@ fn bad_settings_and_models_give_clear_errors() {
         MembraneOptions {
             check_inversion: true,
             density: Some(-1e-9),
-            roving_mass_ratio: 0.0,
+            roving_mass_length: 0.0,
         },
     );
     let mut state = ExplicitState::at_rest(dofs.total);
@@ -1201,24 +1201,26 @@ fn driven_dofs_follow_the_smooth_step() {
 // Roving mass scaling: coupling masses along the rovings
 // ---------------------------------------------------------------------------
 
-/// The membrane with roving mass scaling `kappa` as the case builds it.
-fn solver_with_roving_mass(model: &MembraneModel, kappa: f64) -> Model {
+/// The membrane with roving mass scaling length `length` [mm] as the case
+/// builds it.
+fn solver_with_roving_mass(model: &MembraneModel, length: f64) -> Model {
     Model::membrane(
         model.clone(),
         MembraneOptions {
             check_inversion: true,
             density: Some(RHO),
-            roving_mass_ratio: kappa,
+            roving_mass_length: length,
         },
     )
 }
 
-/// The mass matrix of the free dofs with roving mass scaling, assembled
-/// here from its definition (`docs/explicit.md`): the lumped masses plus,
-/// per triangle, `κ ρ t A0/3 (e_i − e_j)(e_i − e_j)ᵀ` per component on its
-/// edge along the rovings (found from the reference geometry: the edge
-/// whose direction is x); the block of the free dofs.
-fn coupled_mass(model: &MembraneModel, dofs: &DofMap, kappa: f64) -> DMatrix<f64> {
+/// The mass matrix of the free dofs with roving mass scaling length
+/// `length`, assembled here from its definition (`docs/explicit.md`): the
+/// lumped masses plus, per triangle, `κ ρ t A0/3 (e_i − e_j)(e_i − e_j)ᵀ`
+/// per component on its edge along the rovings (found from the reference
+/// geometry: the edge whose direction is x), `κ = 3 (ℓ/L)²` with `L` that
+/// edge's length; the block of the free dofs.
+fn coupled_mass(model: &MembraneModel, dofs: &DofMap, length: f64) -> DMatrix<f64> {
     let lumped = lumped_masses(model);
     let n = 3 * model.nodes.len();
     let mut m = DMatrix::zeros(n, n);
@@ -1231,6 +1233,8 @@ fn coupled_mass(model: &MembraneModel, dofs: &DofMap, kappa: f64) -> DMatrix<f64
             .find(|&(i, j)| (model.nodes[i].y - model.nodes[j].y).abs() < 1e-12)
             .expect("every grid triangle has an edge along x");
         let (i, j) = edge;
+        let edge_length = (model.nodes[i] - model.nodes[j]).norm();
+        let kappa = 3.0 * (length / edge_length).powi(2);
         let mu = kappa * RHO * model.thickness * r.area / 3.0;
         for k in 0..3 {
             let (a, b) = (3 * i + k, 3 * j + k);
@@ -1309,18 +1313,19 @@ fn roving_mass_step_bounds_the_exact_critical_step() {
     let model = grid(4, 2, 5.0, 5.0, svk_rovings());
     let dofs = clamp_left_edge(&model);
     let u = vec![0.0; dofs.total];
-    let kappa = 10.0;
+    // ℓ = 5 √(10/3) mm: κ = 10 on the 5 mm roving edges.
+    let length = 5.0 * (10.0_f64 / 3.0).sqrt();
     let lumped = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, 0.0));
-    let coupled = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, kappa));
-    let estimate = |kappa: f64| {
-        let mut m = solver_with_roving_mass(&model, kappa);
+    let coupled = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, length));
+    let estimate = |length: f64| {
+        let mut m = solver_with_roving_mass(&model, length);
         let system = ExplicitSystem::new(&mut m, &dofs, None, &State::at(&u)).unwrap();
         system.critical_time_step(&m, &State::at(&u)).unwrap()
     };
-    let (est_lumped, est_coupled) = (estimate(0.0), estimate(kappa));
+    let (est_lumped, est_coupled) = (estimate(0.0), estimate(length));
     let (exact_lumped, exact_coupled) = (2.0 / lumped.omega_max(), 2.0 / coupled.omega_max());
     eprintln!(
-        "roving mass κ = {kappa}: exact step {exact_lumped:.4e} → {exact_coupled:.4e} s (×{:.2}), estimate {est_lumped:.4e} → {est_coupled:.4e} s (×{:.2})",
+        "roving mass ℓ = {length:.3} mm (κ = 10): exact step {exact_lumped:.4e} → {exact_coupled:.4e} s (×{:.2}), estimate {est_lumped:.4e} → {est_coupled:.4e} s (×{:.2})",
         exact_coupled / exact_lumped,
         est_coupled / est_lumped
     );
@@ -1345,10 +1350,10 @@ fn roving_mass_step_bounds_the_exact_critical_step() {
 fn undamped_vibration_conserves_energy_with_roving_mass() {
     let model = grid(4, 2, 5.0, 5.0, svk_rovings());
     let dofs = clamp_left_edge(&model);
-    let kappa = 10.0;
-    let modes = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, kappa));
+    let length = 5.0 * (10.0_f64 / 3.0).sqrt();
+    let modes = CoupledModes::new(&model, &dofs, coupled_mass(&model, &dofs, length));
     let zero = vec![0.0; dofs.total];
-    let mut m = solver_with_roving_mass(&model, kappa);
+    let mut m = solver_with_roving_mass(&model, length);
     let system = ExplicitSystem::new(&mut m, &dofs, None, &State::at(&zero)).unwrap();
     assert!(system.has_mass_couplings());
     let dt = 0.9 * system.critical_time_step(&m, &State::at(&zero)).unwrap();
@@ -1370,7 +1375,7 @@ fn undamped_vibration_conserves_energy_with_roving_mass() {
     let params = parameters(steps as f64 * dt, control);
     let mut state = ExplicitState { u: zero, v: v0 };
     let result = solve_explicit(
-        &mut solver_with_roving_mass(&model, kappa),
+        &mut solver_with_roving_mass(&model, length),
         &dofs,
         &params,
         0.0,
@@ -1397,7 +1402,7 @@ fn undamped_vibration_conserves_energy_with_roving_mass() {
     assert!(e0 > 1.05 * lumped, "coupled {e0:e} vs lumped {lumped:e}");
     let worst = result.max_relative_balance_error;
     eprintln!(
-        "energy (roving mass κ = {kappa}): ωmaxΔt = {:.3}, worst balance error {worst:.3e} (bound {bound:.3e})",
+        "energy (roving mass ℓ = {length:.3} mm): ωmaxΔt = {:.3}, worst balance error {worst:.3e} (bound {bound:.3e})",
         modes.omega_max() * dt
     );
     assert!(worst <= bound + 1e-5, "balance error {worst:e} > {bound:e}");

@@ -546,3 +546,25 @@ fn an_overflowing_kinetic_energy_ends_the_run_incomplete() {
         }
     }
 }
+
+/// Requirement: a closed stdout (`ncform material params | head -0`) is
+/// not a panic: the command still succeeds (its output has nowhere to go;
+/// a run's results are on disk). The pipe's read end is closed before the
+/// process starts, so every write fails with a broken pipe.
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_ncform"))
+        .args(["material", "params"])
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("ncform starts");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success() && !stderr.contains("panicked"),
+        "status {:?}, stderr {stderr}",
+        output.status
+    );
+}

@@ -226,7 +226,7 @@ fn planar(model: &MembraneModel) -> Model {
         MembraneOptions {
             check_inversion: true,
             density: None,
-            roving_mass_ratio: 0.0,
+            roving_mass_length: 0.0,
         },
     )
 }

@@ -20,10 +20,10 @@ pub const KG_PER_M2_IN_T_PER_MM2: f64 = 1.0e-9;
 /// kinetic energy below 1 % of the internal energy from 10 % of the stroke
 /// on, in the 45° cross-check (docs/explicit.md).
 pub const DEFAULT_CLAMP_SPEED: f64 = 100.0;
-/// Largest `explicit.roving_mass_scaling`: the roving edges' modes are then
-/// 2κ + 1 = 2001 times heavier, far past where the other modes bound the
-/// step (`docs/explicit.md`, "Roving mass scaling").
-pub const MAX_ROVING_MASS_SCALING: f64 = 1000.0;
+/// Largest `explicit.roving_mass_length` \[mm\]: a coupling mass reaching
+/// over a metre of roving, far past any bench's size (`docs/explicit.md`,
+/// "Roving mass scaling").
+pub const MAX_ROVING_MASS_LENGTH: f64 = 1000.0;
 /// Default number of history rows over the stroke of an explicit run.
 pub const DEFAULT_HISTORY_ROWS: f64 = 160.0;
 /// Most history rows `explicit.history_interval` may ask for (each row is
@@ -81,7 +81,7 @@ pub(super) struct ExplicitRaw {
     pub(super) time_step: Option<Spanned<f64>>,
     pub(super) time_step_update_interval: Option<Spanned<i64>>,
     pub(super) mass_scaling_time_step: Option<Spanned<f64>>,
-    pub(super) roving_mass_scaling: Option<Spanned<f64>>,
+    pub(super) roving_mass_length: Option<Spanned<f64>>,
     pub(super) damping: Option<Spanned<f64>>,
     pub(super) kinetic_energy_warning: Option<Spanned<f64>>,
     pub(super) energy_balance_warning: Option<Spanned<f64>>,
@@ -103,8 +103,8 @@ pub struct ExplicitSettings {
     pub time_step: TimeStepControl,
     /// Mass-scaling target step \[s\].
     pub mass_scaling_time_step: Option<f64>,
-    /// Roving mass scaling `κ` (0: off; `docs/explicit.md`).
-    pub roving_mass_scaling: f64,
+    /// Roving mass scaling length `ℓ` \[mm\] (0: off; `docs/explicit.md`).
+    pub roving_mass_length: f64,
     /// Mass-proportional damping `α` [1/s].
     pub damping: f64,
     /// KE/IE warning level.
@@ -215,25 +215,25 @@ impl ExplicitSettings {
             .as_ref()
             .map(|v| positive(v, "explicit.mass_scaling_time_step", "a time step > 0 s"))
             .transpose()?;
-        let roving_mass_scaling = match &raw.roving_mass_scaling {
+        let roving_mass_length = match &raw.roving_mass_length {
             None => 0.0,
             Some(v) => check.range(
                 v,
-                "explicit.roving_mass_scaling",
-                |x| (0.0..=MAX_ROVING_MASS_SCALING).contains(&x),
-                &format!("a ratio in [0, {MAX_ROVING_MASS_SCALING}]"),
+                "explicit.roving_mass_length",
+                |x| (0.0..=MAX_ROVING_MASS_LENGTH).contains(&x),
+                &format!("a length in [0, {MAX_ROVING_MASS_LENGTH}] mm"),
             )?,
         };
         let damping = match &raw.damping {
             None => 0.0,
             Some(v) => check.range(v, "explicit.damping", |x| x >= 0.0, "a coefficient ≥ 0 1/s")?,
         };
-        if let (Some(v), true) = (&raw.damping, roving_mass_scaling > 0.0 && damping > 0.0) {
+        if let (Some(v), true) = (&raw.damping, roving_mass_length > 0.0 && damping > 0.0) {
             return Err(check.invalid(
                 check.line_of(v),
                 "explicit.damping",
                 crate::config::readable_number(damping),
-                "0 with explicit.roving_mass_scaling (the damping is mass-proportional with the lumped mass only)",
+                "0 with explicit.roving_mass_length (the damping is mass-proportional with the lumped mass only)",
             ));
         }
         let kinetic_energy_warning = match &raw.kinetic_energy_warning {
@@ -270,7 +270,7 @@ impl ExplicitSettings {
             amplitude,
             time_step,
             mass_scaling_time_step,
-            roving_mass_scaling,
+            roving_mass_length,
             damping,
             kinetic_energy_warning,
             energy_balance_warning,

@@ -422,7 +422,7 @@ impl FormingCase {
                 MembraneOptions {
                     check_inversion: false,
                     density: spec.density,
-                    roving_mass_ratio: self.explicit.roving_mass_scaling,
+                    roving_mass_length: self.explicit.roving_mass_length,
                 },
             ));
             // Nodes no triangle uses carry no stiffness: fix them.

@@ -602,7 +602,7 @@ impl OatCase {
             MembraneOptions {
                 check_inversion: true,
                 density: self.density,
-                roving_mass_ratio: self.explicit.roving_mass_scaling,
+                roving_mass_length: self.explicit.roving_mass_length,
             },
         )
     }

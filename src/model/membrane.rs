@@ -87,11 +87,13 @@ pub struct MembraneOptions {
     /// Mass density `ρ` [t/mm³] for the explicit path (areal mass /
     /// thickness); `None` for a quasi-static-only model.
     pub density: Option<f64>,
-    /// Roving mass scaling `κ` for the explicit path (0: off): every
-    /// triangle adds `κ` times its lumped node share as a coupling mass on
-    /// its edge along the rovings ([`crate::element::RovingMass`],
-    /// `docs/explicit.md`, "Roving mass scaling").
-    pub roving_mass_ratio: f64,
+    /// Roving mass scaling length `ℓ` \[mm\] for the explicit path (0:
+    /// off): every triangle adds `κ = 3 (ℓ/L)²` times its lumped node share
+    /// as a coupling mass on its edge along the rovings, `L` that edge's
+    /// length ([`crate::element::RovingMass`], `docs/explicit.md`, "Roving
+    /// mass scaling"): a mode of wavelength `λ` along the rovings gains
+    /// about `(2πℓ/λ)²` of its mass, whatever the mesh.
+    pub roving_mass_length: f64,
 }
 
 /// The membrane of one ply as a force term.
@@ -106,9 +108,10 @@ pub struct MembraneTerm {
     element_density: Vec<f64>,
     /// Per-element energies, summed in element order.
     energies: Vec<f64>,
-    /// Per element, its edge along the rovings (local nodes), when roving
-    /// mass scaling is on (empty otherwise).
-    roving_edges: Vec<Option<[usize; 2]>>,
+    /// Per element, its roving mass (edge along the rovings and `κ`),
+    /// when roving mass scaling is on (empty otherwise; `None` for a
+    /// triangle without such an edge, refused by `validate_explicit`).
+    roving_masses: Vec<Option<RovingMass>>,
 }
 
 impl MembraneTerm {
@@ -121,13 +124,27 @@ impl MembraneTerm {
             membrane.thickness,
         );
         let n = membrane.triangles.len();
-        let roving_edges = if options.roving_mass_ratio > 0.0 {
-            fibre.elements.iter().map(|el| el.roving_edge()).collect()
+        let length = options.roving_mass_length;
+        let roving_masses = if length > 0.0 {
+            fibre
+                .elements
+                .iter()
+                .map(|el| {
+                    el.roving_edge().map(|edge| {
+                        // ∂N/∂a0 = ±1/L at the edge's nodes.
+                        let inverse_length = el.grad[edge[0]][0];
+                        RovingMass {
+                            edge,
+                            ratio: 3.0 * length * length * inverse_length * inverse_length,
+                        }
+                    })
+                })
+                .collect()
         } else {
             Vec::new()
         };
         Self {
-            roving_edges,
+            roving_masses,
             name: name.into(),
             element_density: options.density.map_or_else(Vec::new, |rho| vec![rho; n]),
             options,
@@ -140,11 +157,7 @@ impl MembraneTerm {
     /// The roving mass of element `e` (`None` without roving mass scaling).
     #[inline]
     fn roving_mass(&self, e: usize) -> Option<RovingMass> {
-        let edge = (*self.roving_edges.get(e)?)?;
-        Some(RovingMass {
-            edge,
-            ratio: self.options.roving_mass_ratio,
-        })
+        *self.roving_masses.get(e)?
     }
 
     /// The options the term was built with.
@@ -391,14 +404,14 @@ impl Term for MembraneTerm {
     /// rovings in every triangle.
     fn validate_explicit(&self) -> Result<(), TermFailure> {
         self.density_or_error()?;
-        let ratio = self.options.roving_mass_ratio;
-        if !(ratio.is_finite() && ratio >= 0.0) {
+        let length = self.options.roving_mass_length;
+        if !(length.is_finite() && length >= 0.0) {
             return Err(self.failure_reason(
                 0,
-                format!("roving mass ratio {ratio}: expected a finite number ≥ 0"),
+                format!("roving mass length {length}: expected a finite length ≥ 0 mm"),
             ));
         }
-        if let Some(e) = self.roving_edges.iter().position(Option::is_none) {
+        if let Some(e) = self.roving_masses.iter().position(Option::is_none) {
             return Err(self.failure_reason(
                 e,
                 "no edge of this triangle runs along the rovings: roving mass scaling needs a mesh with an edge of every triangle along them (the generators' aligned patterns; docs/explicit.md)".into(),
@@ -407,11 +420,14 @@ impl Term for MembraneTerm {
         Ok(())
     }
 
-    /// Per triangle with a roving edge, `κ ρ_e t A0 / 3` on that edge.
+    /// Per triangle with a roving edge, `κ_e ρ_e t A0 / 3` on that edge.
     fn mass_couplings(&self, out: &mut Vec<MassCoupling>) {
-        let ratio = self.options.roving_mass_ratio;
-        for (e, edge) in self.roving_edges.iter().enumerate() {
-            if let Some([i, j]) = edge {
+        for (e, roving) in self.roving_masses.iter().enumerate() {
+            if let Some(RovingMass {
+                edge: [i, j],
+                ratio,
+            }) = roving
+            {
                 let nodes = &self.fibre.nodes[e];
                 out.push(MassCoupling {
                     nodes: [nodes[*i] as usize, nodes[*j] as usize],

@@ -94,6 +94,24 @@ enum MaterialCommand {
     },
 }
 
+/// A line on stdout. A closed pipe (`ncform run … | head -1`) is not a
+/// failure of the command: the results are on disk, so the error is
+/// dropped instead of panicking as `println!` does.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// Text on stdout without a newline, as [`say!`].
+macro_rules! say_raw {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 fn main() -> ExitCode {
     // clap exits with 2 on a usage error (and 0 for --help, --version).
     let cli = Cli::parse();
@@ -210,11 +228,12 @@ fn run_forming_case(
     } else {
         format!("; {}", forces.join(", "))
     };
-    println!(
+    say!(
         "{}: {work}, {:.2} s{forces}",
-        spec.title, summary.wall_seconds
+        spec.title,
+        summary.wall_seconds
     );
-    println!("results in {}", out.display());
+    say!("results in {}", out.display());
     Ok(run_exit(
         &summary.status,
         summary.exit_status,
@@ -263,11 +282,12 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     e.max_relative_balance_error
                 ),
             };
-            println!(
+            say!(
                 "{}: {work}, {:.2} s{forces}",
-                spec.title, summary.wall_seconds
+                spec.title,
+                summary.wall_seconds
             );
-            println!("results in {}", out.display());
+            say!("results in {}", out.display());
             Ok(run_exit(
                 &summary.status,
                 summary.exit_status,
@@ -308,7 +328,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     }
                 };
                 for path in written {
-                    println!("{}", path.display());
+                    say!("{}", path.display());
                 }
                 Ok(ExitCode::SUCCESS)
             }
@@ -319,7 +339,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             } => {
                 let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
                 let report = material_check::run_check(&spec, states, seed);
-                print!("{}", material_check::format_report(&spec, &report));
+                say_raw!("{}", material_check::format_report(&spec, &report));
                 if report.failed > 0 || report.rejected > 0 {
                     return Ok(exit(ExitStatus::BadInput));
                 }
@@ -334,7 +354,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                         } else {
                             ""
                         };
-                        println!("{name}{default}: {}", spec.description);
+                        say!("{name}{default}: {}", spec.description);
                     }
                     Ok(ExitCode::SUCCESS)
                 }
@@ -349,7 +369,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                                 .join(", ")
                         )
                     })?;
-                    print!("{text}");
+                    say_raw!("{text}");
                     Ok(ExitCode::SUCCESS)
                 }
             },
