@@ -282,10 +282,20 @@ fn times_len() -> usize {
 fn explicit_forming_run_is_bit_identical_without_the_broad_phase() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join("cases/hemisphere-0.toml")).unwrap();
-    assert!(text.contains("cells = [84, 84]") && text.contains("duration = 0.4"));
+    assert!(text.contains("cells = [84, 84]"));
+    // A short stroke: the case's duration line, whatever its value.
     let text = text
         .replace("cells = [84, 84]", "cells = [10, 10]")
-        .replace("duration = 0.4", "duration = 0.05");
+        .lines()
+        .map(|l| {
+            if l.starts_with("duration = ") {
+                "duration = 0.05"
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
     let case = FormingCase::from_toml_str(&text, "hemisphere-coarse.toml", &root.join("cases"))
         .unwrap_or_else(|e| panic!("{e}"));
     let run = |broad_phase: bool| {

@@ -217,16 +217,26 @@ fn interpolate(curve: &[(f64, f64)], x: f64) -> f64 {
 /// (the limits for the paper-size cross-check, applied here to a
 /// 12 × 12-cell blank pushed 20 mm, the depth the coarse quasi-static path
 /// reaches in seconds). The explicit punch follows the shipped programme's
-/// speed (depth 75 mm · (t / 0.4 s)²), so it reaches 20 mm after
-/// 0.4 s · √(20/75).
+/// speed (depth 75 mm · (t / T)², T the case's `duration`), so it reaches
+/// 20 mm after T · √(20/75).
 #[test]
 fn hemisphere_0_explicit_agrees_with_quasi_static() {
-    let duration = format!("duration = {}", 0.4 * (20.0f64 / 75.0).sqrt());
+    let text = fs::read_to_string(cases_dir().join("hemisphere-0.toml")).unwrap();
+    let shipped_line = text
+        .lines()
+        .find(|l| l.starts_with("duration = "))
+        .expect("the case sets its duration");
+    let shipped: f64 = shipped_line["duration = ".len()..]
+        .split('#')
+        .next()
+        .and_then(|v| v.trim().parse().ok())
+        .expect("a number");
+    let duration = format!("duration = {}", shipped * (20.0f64 / 75.0).sqrt());
     let shallow = [("displacement = 75.0", "displacement = 20.0")];
     let explicit = coarse(
         "hemisphere-0.toml",
         12,
-        &[shallow[0], ("duration = 0.4", duration.as_str())],
+        &[shallow[0], (shipped_line, duration.as_str())],
     );
     let quasi_static = coarse(
         "hemisphere-0.toml",
