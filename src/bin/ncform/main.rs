@@ -4,7 +4,7 @@
 //! SIGINT/SIGTERM, 5 some outputs not written.
 
 use std::io::{self, BufReader};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -223,23 +223,25 @@ fn run_forming_case(
                 .collect()
         })
         .unwrap_or_default();
-    let forces = if forces.is_empty() {
-        String::new()
-    } else {
-        format!("; {}", forces.join(", "))
-    };
-    say!(
-        "{}: {work}, {:.2} s{forces}",
-        spec.title,
-        summary.wall_seconds
-    );
-    say!("results in {}", out.display());
+    report(&spec.title, &work, summary.wall_seconds, &forces, &out);
     Ok(run_exit(
         &summary.status,
         summary.exit_status,
         |load| format!("programme fraction {load}"),
         |load| load.to_string(),
     ))
+}
+
+/// The run's one-line summary (title, work, wall time, the last forces)
+/// and where its results are.
+fn report(title: &str, work: &str, wall_seconds: f64, forces: &[String], out: &Path) {
+    let forces = if forces.is_empty() {
+        String::new()
+    } else {
+        format!("; {}", forces.join(", "))
+    };
+    say!("{title}: {work}, {wall_seconds:.2} s{forces}");
+    say!("results in {}", out.display());
 }
 
 fn run(cli: Cli) -> Result<ExitCode, String> {
@@ -263,11 +265,6 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 .iter()
                 .map(|(d, f)| format!("{f:.3} N at {d} mm"))
                 .collect();
-            let forces = if forces.is_empty() {
-                String::new()
-            } else {
-                format!("; {}", forces.join(", "))
-            };
             let work = match &summary.explicit {
                 None => format!(
                     "{} steps, {} Newton iterations",
@@ -282,12 +279,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     e.max_relative_balance_error
                 ),
             };
-            say!(
-                "{}: {work}, {:.2} s{forces}",
-                spec.title,
-                summary.wall_seconds
-            );
-            say!("results in {}", out.display());
+            report(&spec.title, &work, summary.wall_seconds, &forces, &out);
             Ok(run_exit(
                 &summary.status,
                 summary.exit_status,

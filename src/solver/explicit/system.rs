@@ -77,6 +77,54 @@ pub struct Update {
     pub load_next: f64,
 }
 
+/// [`Update`] with its per-pass factors, for one dof at a time.
+struct Leapfrog {
+    step: Update,
+    /// `1 − αh/2`.
+    keep: f64,
+    /// `1 / (1 + αh/2)`.
+    inv_scale: f64,
+}
+
+impl Leapfrog {
+    fn new(step: Update) -> Self {
+        let half = 0.5 * step.damping * step.velocity_step;
+        Self {
+            step,
+            keep: 1.0 - half,
+            inv_scale: 1.0 / (1.0 + half),
+        }
+    }
+
+    /// One dof of the node pass: a free dof (`p` NaN) takes
+    /// `v_{n+½} = ((1 − αh/2) v_{n−½} + increment) / (1 + αh/2)` (the
+    /// increment `h a` of its acceleration) and `u += Δt v_{n+½}`, and
+    /// returns the damping's energy `α m v̄² h`; a prescribed one takes
+    /// `u = p λ(t_{n+1})`, `v = Δu/Δt` and returns 0.
+    #[inline(always)]
+    fn advance(&self, u: &mut f64, v: &mut f64, p: f64, increment: f64, m: f64) -> f64 {
+        let Update {
+            velocity_step: h,
+            time_step: dt,
+            damping: alpha,
+            load_next,
+        } = self.step;
+        if p.is_nan() {
+            let v_old = *v;
+            let v_new = (self.keep * v_old + increment) * self.inv_scale;
+            *v = v_new;
+            *u += dt * v_new;
+            let v_mean = 0.5 * (v_old + v_new);
+            alpha * m * v_mean * v_mean * h
+        } else {
+            let u_new = p * load_next;
+            *v = (u_new - *u) / dt;
+            *u = u_new;
+            0.0
+        }
+    }
+}
+
 /// The model as the time loop sees it: built once by
 /// [`ExplicitSystem::new`], then driven pass by pass (by
 /// [`super::solve_explicit`], or by a benchmark).
@@ -473,12 +521,10 @@ impl ExplicitSystem {
         }
         let (node_internal, extra_internal) = internal.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
-        let (kinetic_nodes, kinetic_extra) = kinetic_partial.split_at_mut(blocks);
-        let (damping_nodes, damping_extra) = damping_partial.split_at_mut(blocks);
         node_internal
             .par_chunks_mut(3 * NODE_BLOCK)
-            .zip(kinetic_nodes.par_iter_mut())
-            .zip(damping_nodes.par_iter_mut())
+            .zip(kinetic_partial[..blocks].par_iter_mut())
+            .zip(damping_partial[..blocks].par_iter_mut())
             .zip(driven_partial.par_iter_mut())
             .enumerate()
             .for_each(
@@ -511,7 +557,6 @@ impl ExplicitSystem {
                     *driven_sum = driven;
                 },
             );
-        let _ = (kinetic_extra, damping_extra);
         self.extras_kinetic(
             forces,
             v_half,
@@ -670,18 +715,12 @@ impl ExplicitSystem {
         partial: &mut [f64],
         step: Update,
     ) {
-        let Update {
-            velocity_step: h,
-            time_step: dt,
-            damping: alpha,
-            load_next,
-        } = step;
-        let keep = 1.0 - 0.5 * alpha * h;
-        let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
         if !self.chains.is_empty() {
             self.update_coupled(forces, u, v, partial, step);
             return;
         }
+        let leapfrog = Leapfrog::new(step);
+        let h = step.velocity_step;
         let (u_nodes, u_extra) = u.split_at_mut(3 * self.nodes);
         let (v_nodes, v_extra) = v.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
@@ -705,19 +744,13 @@ impl ExplicitSystem {
                     let m = self.masses.node[node];
                     let h_over_m = h * self.inverse_mass[node];
                     for k in 0..3 {
-                        let p = self.per_unit_load[3 * node + k];
-                        if p.is_nan() {
-                            let v_old = v_node[k];
-                            let v_new = (keep * v_old - h_over_m * f[k]) * inv_scale;
-                            v_node[k] = v_new;
-                            u_node[k] += dt * v_new;
-                            let v_mean = 0.5 * (v_old + v_new);
-                            dissipated += alpha * m * v_mean * v_mean * h;
-                        } else {
-                            let u_new = p * load_next;
-                            v_node[k] = (u_new - u_node[k]) / dt;
-                            u_node[k] = u_new;
-                        }
+                        dissipated += leapfrog.advance(
+                            &mut u_node[k],
+                            &mut v_node[k],
+                            self.per_unit_load[3 * node + k],
+                            -(h_over_m * f[k]),
+                            m,
+                        );
                     }
                 }
                 *sum = dissipated;
@@ -738,14 +771,8 @@ impl ExplicitSystem {
         partial: &mut [f64],
         step: Update,
     ) {
-        let Update {
-            velocity_step: h,
-            time_step: dt,
-            damping: alpha,
-            load_next,
-        } = step;
-        let keep = 1.0 - 0.5 * alpha * h;
-        let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
+        let leapfrog = Leapfrog::new(step);
+        let h = step.velocity_step;
         let mut guard = self
             .accelerations
             .lock()
@@ -774,19 +801,13 @@ impl ExplicitSystem {
                     let node = first + i;
                     let m = self.masses.node[node];
                     for k in 0..3 {
-                        let p = self.per_unit_load[3 * node + k];
-                        if p.is_nan() {
-                            let v_old = v_node[k];
-                            let v_new = (keep * v_old + h * a_node[k]) * inv_scale;
-                            v_node[k] = v_new;
-                            u_node[k] += dt * v_new;
-                            let v_mean = 0.5 * (v_old + v_new);
-                            dissipated += alpha * m * v_mean * v_mean * h;
-                        } else {
-                            let u_new = p * load_next;
-                            v_node[k] = (u_new - u_node[k]) / dt;
-                            u_node[k] = u_new;
-                        }
+                        dissipated += leapfrog.advance(
+                            &mut u_node[k],
+                            &mut v_node[k],
+                            self.per_unit_load[3 * node + k],
+                            h * a_node[k],
+                            m,
+                        );
                     }
                 }
                 *sum = dissipated;
@@ -803,31 +824,19 @@ impl ExplicitSystem {
         v_extra: &mut [f64],
         step: Update,
     ) -> f64 {
-        let Update {
-            velocity_step: h,
-            time_step: dt,
-            damping: alpha,
-            load_next,
-        } = step;
-        let keep = 1.0 - 0.5 * alpha * h;
-        let inv_scale = 1.0 / (1.0 + 0.5 * alpha * h);
+        let leapfrog = Leapfrog::new(step);
+        let h = step.velocity_step;
         let mut dissipated = 0.0;
         for (k, (uk, vk)) in u_extra.iter_mut().zip(v_extra.iter_mut()).enumerate() {
             let f = self.gather_extra(forces, k);
-            let p = self.per_unit_load[3 * self.nodes + k];
-            if p.is_nan() {
-                let m = self.masses.extra[k];
-                let v_old = *vk;
-                let v_new = (keep * v_old - h / m * f) * inv_scale;
-                *vk = v_new;
-                *uk += dt * v_new;
-                let v_mean = 0.5 * (v_old + v_new);
-                dissipated += alpha * m * v_mean * v_mean * h;
-            } else {
-                let u_new = p * load_next;
-                *vk = (u_new - *uk) / dt;
-                *uk = u_new;
-            }
+            let m = self.masses.extra[k];
+            dissipated += leapfrog.advance(
+                uk,
+                vk,
+                self.per_unit_load[3 * self.nodes + k],
+                -(h / m * f),
+                m,
+            );
         }
         dissipated
     }
