@@ -188,9 +188,10 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
         let mut v = vec![0.0; u.len()];
         let mut forces = vec![0.0; system.force_len()];
         let mut partial = vec![0.0; system.partials()];
+        let mut seconds = vec![0.0; model.terms.len()];
         pool.install(|| {
             system
-                .element_forces(&mut model, &State::at(&u), &mut forces)
+                .element_forces(&mut model, &State::at(&u), &mut forces, &mut seconds)
                 .expect("forces")
         });
         group.bench_function(format!("{threads}_threads"), |b| {
@@ -216,7 +217,7 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
                             ..State::at(black_box(&u))
                         };
                         system
-                            .element_forces(&mut model, &state, &mut forces)
+                            .element_forces(&mut model, &state, &mut forces, &mut seconds)
                             .expect("forces");
                     }
                     start.elapsed()

@@ -146,7 +146,8 @@ pub struct FormingSummary {
     pub explicit: Option<ExplicitFigures>,
     /// Time split of the solve \[s\].
     pub timings: Timings,
-    /// Quasi-static: of the assembly time, each term's evaluation \[s\].
+    /// Each term's wall time \[s\]: of the assembly (quasi-static) or of the
+    /// element passes (explicit).
     pub term_seconds: Vec<(String, f64)>,
     /// Quasi-static: strain energy at the end, energy dissipated by the
     /// stabilisation and its largest ratio to the strain energy \[N·mm, -\].
@@ -1147,8 +1148,8 @@ fn run_explicit(
             threads: result.threads,
             warnings: result.warnings.clone(),
         }),
+        term_seconds: result.term_seconds.clone(),
         records: Some(result.records),
-        term_seconds: Vec::new(),
         stabilisation: None,
     })
 }

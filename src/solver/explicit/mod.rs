@@ -25,6 +25,7 @@
 
 mod chains;
 mod params;
+pub mod step;
 pub mod system;
 
 use std::time::Instant;
@@ -197,6 +198,9 @@ pub struct ExplicitResult {
     pub warnings: Vec<String>,
     /// Time split.
     pub timings: ExplicitTimings,
+    /// Each term's share of the element passes: its name and wall time
+    /// \[s\], in term order.
+    pub term_seconds: Vec<(String, f64)>,
     /// rayon threads used.
     pub threads: usize,
 }
@@ -386,8 +390,15 @@ fn integrate(
     times.sort_by(f64::total_cmp);
     times.dedup();
 
-    system.element_forces(model, &state_at(u, start_load), &mut buffers.forces)?;
-    let initial_critical = system.critical_time_step(model, &state_at(u, start_load))?;
+    let mut term_seconds = vec![0.0; model.terms.len()];
+    system.element_forces(
+        model,
+        &state_at(u, start_load),
+        &mut buffers.forces,
+        &mut term_seconds,
+    )?;
+    let (mut estimator, initial_critical) =
+        step::StepEstimator::new(&system, model, &state_at(u, start_load))?;
     let stable_step = |critical: f64| match params.time_step {
         TimeStepControl::Stable { .. } => safety * critical,
         TimeStepControl::Fixed { time_step } => time_step,
@@ -543,6 +554,7 @@ fn integrate(
                 ..state_at(u, now)
             },
             &mut buffers.forces,
+            &mut term_seconds,
         );
         timings.element_pass += clock.elapsed().as_secs_f64();
         if let Err(failure) = pass {
@@ -655,7 +667,7 @@ fn integrate(
 
         if increments.is_multiple_of(update_interval) {
             let clock = Instant::now();
-            match system.critical_time_step(model, &state_at(u, now)) {
+            match estimator.estimate(&system, model, &state_at(u, now)) {
                 Ok(critical) => time_step = stable_step(critical),
                 Err(failure) => {
                     break RunStatus::Incomplete {
@@ -669,6 +681,18 @@ fn integrate(
         }
     };
 
+    for (term, growth) in model.terms.iter().zip(estimator.growth()) {
+        if growth.count > 0 {
+            warnings.push(format!(
+                "stable-step estimate: the frequency bound of '{}' grew {} time(s) past {} times its last refreshed value between refreshes (at most {:.2} times; refreshed every {} estimates, docs/explicit.md \"Stable step\"): the step may have left the safety factor's margin; lower time_step_update_interval",
+                term.name(),
+                growth.count,
+                step::STALE_MARGIN,
+                growth.largest_ratio,
+                step::REFRESH_EVERY,
+            ));
+        }
+    }
     Ok(ExplicitResult {
         status,
         records,
@@ -691,6 +715,12 @@ fn integrate(
         max_relative_balance_error: max_balance,
         warnings,
         timings,
+        term_seconds: model
+            .terms
+            .iter()
+            .map(|t| t.name().to_string())
+            .zip(term_seconds)
+            .collect(),
         threads: rayon::current_num_threads(),
     })
 }

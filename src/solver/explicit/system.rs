@@ -171,6 +171,15 @@ fn root(parent: &mut [usize], mut n: usize) -> usize {
     n
 }
 
+/// `2/√ω²` \[s\], `∞` for `ω² = 0`: the central-difference limit.
+pub fn critical_step(frequency_squared: f64) -> f64 {
+    if frequency_squared > 0.0 {
+        2.0 / frequency_squared.sqrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
 impl ExplicitSystem {
     /// Builds the system for `model` at the state `state`; with
     /// `mass_scaling = Some((target, safety))` every term first raises its
@@ -365,7 +374,9 @@ impl ExplicitSystem {
     }
 
     /// Force pass: every term's explicit stencil forces at `state` into its
-    /// region of `forces` (each term runs its own parallel loop).
+    /// region of `forces` (each term runs its own parallel loop), adding
+    /// each term's wall time \[s\] to its entry of `seconds` (one per
+    /// term, in term order).
     ///
     /// # Errors
     /// The first term (in order) that fails, at its lowest-index stencil.
@@ -374,22 +385,27 @@ impl ExplicitSystem {
         model: &mut Model,
         state: &State,
         forces: &mut [f64],
+        seconds: &mut [f64],
     ) -> Result<(), TermFailure> {
-        for (term, &(start, end)) in model.terms.iter_mut().zip(&self.regions) {
-            term.explicit_forces(state, &mut forces[start..end])?;
+        for ((term, &(start, end)), spent) in model
+            .terms
+            .iter_mut()
+            .zip(&self.regions)
+            .zip(seconds.iter_mut())
+        {
+            let clock = std::time::Instant::now();
+            let pass = term.explicit_forces(state, &mut forces[start..end]);
+            *spent += clock.elapsed().as_secs_f64();
+            pass?;
         }
         Ok(())
     }
 
     /// `2 / √ω²`: the estimated critical step at `state` \[s\] (a lower
     /// bound of the true one), with `ω²` a bound of `λmax(M⁻¹K)` from the
-    /// terms' bounds (Weyl: the bounds of terms add up). Terms whose
-    /// stiffness is their own and that act on disjoint node sets (the
-    /// membranes and bending of two plies) are decoupled blocks of `K`, so
-    /// their groups combine by the largest sum, not the sum of all:
-    /// `ω² = max_groups Σ_group ω²_t + Σ_penalty ω²_t`. With one group the
-    /// terms' bounds are summed in term order. Terms whose stiffness
-    /// follows from the step are left out when `with_penalties` is false.
+    /// terms' bounds ([`ExplicitSystem::combined_frequency`]). Terms whose
+    /// stiffness follows from the step are left out when `with_penalties`
+    /// is false.
     ///
     /// # Errors
     /// The first term that fails.
@@ -399,33 +415,35 @@ impl ExplicitSystem {
         state: &State,
         with_penalties: bool,
     ) -> Result<f64, TermFailure> {
-        let mut sum = 0.0;
-        if self.group_count <= 1 {
-            for term in &model.terms {
-                if with_penalties || !term.stiffness_from_time_step() {
-                    sum += term.frequency_bound(state, &self.masses)?;
-                }
+        let mut bounds = vec![0.0; model.terms.len()];
+        for (term, bound) in model.terms.iter().zip(&mut bounds) {
+            if with_penalties || !term.stiffness_from_time_step() {
+                *bound = term.frequency_bound(state, &self.masses)?;
             }
-        } else {
-            let mut groups = vec![0.0; self.group_count];
-            for (term, group) in model.terms.iter().zip(&self.groups) {
-                let penalty = term.stiffness_from_time_step();
-                if penalty && !with_penalties {
-                    continue;
-                }
-                let bound = term.frequency_bound(state, &self.masses)?;
-                match group {
-                    Some(g) if !penalty => groups[*g] += bound,
-                    _ => sum += bound,
-                }
-            }
-            sum += groups.iter().fold(0.0_f64, |m, g| m.max(*g));
         }
-        Ok(if sum > 0.0 {
-            2.0 / sum.sqrt()
-        } else {
-            f64::INFINITY
-        })
+        Ok(critical_step(self.combined_frequency(model, &bounds)))
+    }
+
+    /// `ω²` \[1/s²\] from the terms' bounds `bounds` (one per term, in term
+    /// order; Weyl: the bounds of terms add up). Terms whose stiffness is
+    /// their own and that act on disjoint node sets (the membranes and
+    /// bending of two plies) are decoupled blocks of `K`, so their groups
+    /// combine by the largest sum, not the sum of all:
+    /// `ω² = max_groups Σ_group ω²_t + Σ_penalty ω²_t`. With one group the
+    /// bounds are summed in term order.
+    pub fn combined_frequency(&self, model: &Model, bounds: &[f64]) -> f64 {
+        if self.group_count <= 1 {
+            return bounds.iter().fold(0.0, |s, b| s + b);
+        }
+        let mut sum = 0.0;
+        let mut groups = vec![0.0; self.group_count];
+        for ((term, group), bound) in model.terms.iter().zip(&self.groups).zip(bounds) {
+            match group {
+                Some(g) if !term.stiffness_from_time_step() => groups[*g] += bound,
+                _ => sum += bound,
+            }
+        }
+        sum + groups.iter().fold(0.0_f64, |m, g| m.max(*g))
     }
 
     /// [`ExplicitSystem::critical_time_step_of`] with every term.
