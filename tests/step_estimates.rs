@@ -17,6 +17,8 @@ struct Bound {
     /// `ω²` [1/s²], as f64 bits.
     value: Arc<AtomicU64>,
     calls: Arc<AtomicUsize>,
+    /// Whether its stiffness follows the step (a contact penalty).
+    penalty: bool,
 }
 
 impl Term for Bound {
@@ -49,6 +51,9 @@ impl Term for Bound {
         masses.node[0] += 1.0;
         1.0
     }
+    fn stiffness_from_time_step(&self) -> bool {
+        self.penalty
+    }
     fn frequency_bound(&self, _state: &State, _masses: &Masses) -> Result<f64, TermFailure> {
         self.calls.fetch_add(1, Ordering::Relaxed);
         Ok(f64::from_bits(self.value.load(Ordering::Relaxed)))
@@ -74,6 +79,10 @@ impl Handle {
 }
 
 fn add_bound(model: &mut Model, name: &'static str, value: f64) -> Handle {
+    add_term(model, name, value, false)
+}
+
+fn add_term(model: &mut Model, name: &'static str, value: f64, penalty: bool) -> Handle {
     let handle = Handle {
         value: Arc::new(AtomicU64::new(value.to_bits())),
         calls: Arc::new(AtomicUsize::new(0)),
@@ -82,6 +91,7 @@ fn add_bound(model: &mut Model, name: &'static str, value: f64) -> Handle {
         name,
         value: handle.value.clone(),
         calls: handle.calls.clone(),
+        penalty,
     });
     handle
 }
@@ -130,14 +140,16 @@ fn a_small_term_is_refreshed_every_tenth_estimate_with_a_margin() {
 
 /// Requirement: a small term whose bound grew past the margin between two
 /// refreshes is counted with its ratio; a term whose bound is zero (a
-/// load) is evaluated every time, so that a bound appearing from zero is
-/// never missed.
+/// load) and a penalty term (contact, whose bound follows the contact set)
+/// are evaluated every time, so that a bound appearing from zero or
+/// jumping with the contact set is never missed.
 #[test]
 fn growth_past_the_margin_is_counted_and_zero_bounds_are_always_refreshed() {
     let mut model = Model::new(1);
     let _stiff = add_bound(&mut model, "stiff", 99.0);
     let small = add_bound(&mut model, "small", 1.0);
     let zero = add_bound(&mut model, "zero", 0.0);
+    let penalty = add_term(&mut model, "penalty", 0.5, true);
     let u = vec![0.0; 3];
     let state = State::at(&u);
     let system =
@@ -148,6 +160,7 @@ fn growth_past_the_margin_is_counted_and_zero_bounds_are_always_refreshed() {
         estimator.estimate(&system, &model, &state).unwrap();
     }
     assert_eq!(zero.calls(), 1 + REFRESH_EVERY);
+    assert_eq!(penalty.calls(), 1 + REFRESH_EVERY);
     let growth = estimator.growth();
     assert_eq!(growth[0].count, 0);
     assert_eq!(growth[1].count, 1);
@@ -156,6 +169,6 @@ fn growth_past_the_margin_is_counted_and_zero_bounds_are_always_refreshed() {
     zero.set(5.0);
     assert_eq!(
         estimator.estimate(&system, &model, &state).unwrap(),
-        step(99.0 + STALE_MARGIN * 3.0 + 5.0)
+        step(99.0 + STALE_MARGIN * 3.0 + 5.0 + 0.5)
     );
 }

@@ -3,8 +3,10 @@
 //! "Stable step").
 //!
 //! Every re-estimate refreshes the bound of each term whose last bound was
-//! at least [`SMALL_SHARE`] of the sum of all terms' bounds. A term below
-//! that share (bending next to the membrane: about 3 % on the forming
+//! at least [`SMALL_SHARE`] of the sum of all terms' bounds, of each term
+//! whose bound is zero, and of each penalty term (contact: its bound
+//! follows the contact set, which can change at once). A term below that
+//! share (bending next to the membrane: about 3 % on the forming
 //! benches, yet the costliest bound) is refreshed at every
 //! [`REFRESH_EVERY`]-th re-estimate only, and in between enters the sum
 //! with [`STALE_MARGIN`] times its last bound. The step then keeps the
@@ -90,7 +92,8 @@ impl StepEstimator {
         let total = self.bounds.iter().fold(0.0, |s, b| s + b);
         for (t, term) in model.terms.iter().enumerate() {
             let last = self.bounds[t];
-            let small = last > 0.0 && last < SMALL_SHARE * total;
+            let small =
+                last > 0.0 && last < SMALL_SHARE * total && !term.stiffness_from_time_step();
             if small && self.ages[t] + 1 < REFRESH_EVERY {
                 self.ages[t] += 1;
                 self.in_use[t] = STALE_MARGIN * last;
