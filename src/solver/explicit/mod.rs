@@ -684,7 +684,7 @@ fn integrate(
     for (term, growth) in model.terms.iter().zip(estimator.growth()) {
         if growth.count > 0 {
             warnings.push(format!(
-                "stable-step estimate: the frequency bound of '{}' grew {} time(s) past {} times its last refreshed value between refreshes (at most {:.2} times; refreshed every {} estimates, docs/explicit.md \"Stable step\"): the step may have left the safety factor's margin; lower time_step_update_interval",
+                "stable-step estimate: the frequency bound of '{}' grew {} time(s) past {} times its last refreshed value between refreshes (at most {:.2} times; refreshed every {} estimates, docs/explicit.md \"The stable time step\"): the step may have left the safety factor's margin; lower time_step_update_interval",
                 term.name(),
                 growth.count,
                 step::STALE_MARGIN,

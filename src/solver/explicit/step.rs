@@ -1,6 +1,6 @@
 //! The stable-step re-estimates of a run, with the bounds of terms whose
 //! share of `ω²` is small refreshed less often (`docs/explicit.md`,
-//! "Stable step").
+//! "The stable time step").
 //!
 //! Every re-estimate refreshes the bound of each term whose last bound was
 //! at least [`SMALL_SHARE`] of the sum of all terms' bounds, of each term
