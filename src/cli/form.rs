@@ -1148,7 +1148,7 @@ fn run_explicit(
             threads: result.threads,
             warnings: result.warnings.clone(),
         }),
-        term_seconds: result.term_seconds.clone(),
+        term_seconds: result.term_seconds,
         records: Some(result.records),
         stabilisation: None,
     })

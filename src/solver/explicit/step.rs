@@ -61,10 +61,7 @@ impl StepEstimator {
         model: &Model,
         state: &State,
     ) -> Result<(Self, f64), TermFailure> {
-        let mut bounds = Vec::with_capacity(model.terms.len());
-        for term in &model.terms {
-            bounds.push(term.frequency_bound(state, &system.masses)?);
-        }
+        let bounds = system.term_bounds(model, state, true)?;
         let critical = critical_step(system.combined_frequency(model, &bounds));
         let terms = bounds.len();
         Ok((

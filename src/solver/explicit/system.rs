@@ -415,13 +415,29 @@ impl ExplicitSystem {
         state: &State,
         with_penalties: bool,
     ) -> Result<f64, TermFailure> {
+        let bounds = self.term_bounds(model, state, with_penalties)?;
+        Ok(critical_step(self.combined_frequency(model, &bounds)))
+    }
+
+    /// Each term's bound `ω²_t` \[1/s²\] at `state`, in term order; zero
+    /// for the terms whose stiffness follows from the step when
+    /// `with_penalties` is false.
+    ///
+    /// # Errors
+    /// The first term that fails.
+    pub fn term_bounds(
+        &self,
+        model: &Model,
+        state: &State,
+        with_penalties: bool,
+    ) -> Result<Vec<f64>, TermFailure> {
         let mut bounds = vec![0.0; model.terms.len()];
         for (term, bound) in model.terms.iter().zip(&mut bounds) {
             if with_penalties || !term.stiffness_from_time_step() {
                 *bound = term.frequency_bound(state, &self.masses)?;
             }
         }
-        Ok(critical_step(self.combined_frequency(model, &bounds)))
+        Ok(bounds)
     }
 
     /// `ω²` \[1/s²\] from the terms' bounds `bounds` (one per term, in term
