@@ -89,6 +89,35 @@ fn element_cycles(criterion: &mut Criterion) {
             })
         })
     });
+    let pool2 = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    group.bench_function("all_phases_2_threads", |b| {
+        pool2.install(|| {
+            b.iter(|| {
+                pass.add_forces(black_box(&u), &mut scratch, &mut forces)
+                    .expect("forces")
+            })
+        })
+    });
+    let mut flush = vec![0.0f64; 8 << 20];
+    group.bench_function("all_phases_1_thread_cold", |b| {
+        pool.install(|| {
+            b.iter_batched(
+                || {
+                    for (i, x) in flush.iter_mut().enumerate() {
+                        *x += i as f64;
+                    }
+                },
+                |_| {
+                    pass.add_forces(black_box(&u), &mut scratch, &mut forces)
+                        .expect("forces")
+                },
+                criterion::BatchSize::PerIteration,
+            )
+        })
+    });
     // Each phase alone, serially over all batches (where the time goes).
     let batches = pass.batch_count();
     group.bench_function("phase1_geometry", |b| {

@@ -234,10 +234,10 @@ impl Term for BendingTerm {
     }
 
     fn explicit_forces(&mut self, state: &State, out: &mut [f64]) -> Result<(), TermFailure> {
-        out.fill(0.0);
-        let (forces, _) = out.as_chunks_mut::<9>();
+        let (forces, rest) = out.as_chunks_mut::<9>();
+        rest.fill(0.0);
         self.pass
-            .add_forces(state.u, &mut self.scratch, forces)
+            .write_forces(state.u, &mut self.scratch, forces)
             .map_err(|f| {
                 let reason = match self.elements[f.element]
                     .energy(&self.positions(f.element, state.u), &self.stiffness)

@@ -459,13 +459,29 @@ impl BendingPass {
         moments: &mut [[f64; 4]],
         forces: &mut [[f64; 9]],
     ) -> Result<(), BendingFailure> {
+        self.moments_with::<true>(first, geometry, normals, ghosts, hinges, moments, forces)
+    }
+
+    /// [`BendingPass::moments`], the own-energy forces added to `forces`
+    /// (`ADD`) or written over them.
+    #[allow(clippy::too_many_arguments)]
+    fn moments_with<const ADD: bool>(
+        &self,
+        first: usize,
+        geometry: &[GeometryBatch],
+        normals: &[[f64; 4]],
+        ghosts: &[GhostState],
+        hinges: &mut [HingeBatch],
+        moments: &mut [[f64; 4]],
+        forces: &mut [[f64; 9]],
+    ) -> Result<(), BendingFailure> {
         let batches = &self.batches[first..first + hinges.len()];
         let own = &geometry[first..first + hinges.len()];
         let failed;
         #[cfg(target_arch = "x86_64")]
         {
             if let Some(simd) = self.simd_token() {
-                let pass = Avx2Moments {
+                let pass = Avx2Moments::<ADD> {
                     simd,
                     batches,
                     own,
@@ -476,12 +492,12 @@ impl BendingPass {
                 };
                 failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
             } else {
-                failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
+                failed = moments_scalar::<ADD>(batches, own, normals, ghosts, hinges, forces);
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            failed = moments_scalar(batches, own, normals, ghosts, hinges, forces);
+            failed = moments_scalar::<ADD>(batches, own, normals, ghosts, hinges, forces);
         }
         for (hinge, moments) in hinges.iter().zip(moments.chunks_exact_mut(LANES)) {
             for (l, m) in moments.iter_mut().enumerate() {
@@ -595,6 +611,31 @@ impl BendingPass {
         scratch: &mut BendingScratch,
         forces: &mut [[f64; 9]],
     ) -> Result<(), BendingFailure> {
+        self.forces_with::<true>(u, scratch, forces)
+    }
+
+    /// [`BendingPass::add_forces`] writing the forces over `forces` (one
+    /// slot per element) instead of adding them: the slots need no zeroing
+    /// pass, and phase 2 writes them without reading them first (less
+    /// memory traffic; the same values as adding to zeroed slots).
+    ///
+    /// # Errors
+    /// As [`BendingPass::add_forces`].
+    pub fn write_forces(
+        &self,
+        u: &[f64],
+        scratch: &mut BendingScratch,
+        forces: &mut [[f64; 9]],
+    ) -> Result<(), BendingFailure> {
+        self.forces_with::<false>(u, scratch, forces)
+    }
+
+    fn forces_with<const ADD: bool>(
+        &self,
+        u: &[f64],
+        scratch: &mut BendingScratch,
+        forces: &mut [[f64; 9]],
+    ) -> Result<(), BendingFailure> {
         let chunk = CHUNK_BATCHES;
         scratch
             .geometry
@@ -613,7 +654,7 @@ impl BendingPass {
             .zip(forces.par_chunks_mut(chunk * LANES))
             .enumerate()
             .map(|(c, ((hinges, moments), forces))| {
-                self.moments(
+                self.moments_with::<ADD>(
                     c * chunk,
                     geometry,
                     normals,
@@ -737,7 +778,7 @@ fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
 /// that failed.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
+fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     ctx: V,
     batch: &ElementBatch,
     own: &GeometryBatch,
@@ -889,7 +930,11 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         [f[1][0].store(), f[1][1].store(), f[1][2].store()],
         [f[2][0].store(), f[2][1].store(), f[2][2].store()],
     ];
-    scatter_add(forces, off, &stored);
+    if ADD {
+        scatter_add(forces, off, &stored);
+    } else {
+        scatter_store(forces, off, &stored);
+    }
     // Padding lanes never fail.
     if lanes < W {
         failed &= (1u32 << lanes) - 1;
@@ -898,7 +943,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize>(
 }
 
 /// Phase 2 lane by lane (no SIMD); the first failing offset.
-fn moments_scalar(
+fn moments_scalar<const ADD: bool>(
     batches: &[ElementBatch],
     own: &[GeometryBatch],
     normals: &[[f64; 4]],
@@ -914,7 +959,7 @@ fn moments_scalar(
         let end = ((b + 1) * LANES).min(forces.len());
         let slots = &mut forces[b * LANES..end];
         for l in 0..LANES {
-            if moment_lanes::<f64, 1>(0.0, batch, geo, normals, ghosts, hinge, slots, l) != 0 {
+            if moment_lanes::<f64, 1, ADD>(0.0, batch, geo, normals, ghosts, hinge, slots, l) != 0 {
                 return Some(b * LANES + l);
             }
         }
@@ -1008,6 +1053,20 @@ fn scatter_add<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; 
     }
 }
 
+/// Writes node-major lane forces `f[k][c][w]` over the slots
+/// `off..off + W` that exist (the last batch may be partial).
+#[inline(always)]
+fn scatter_store<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; W]; 3]; 3]) {
+    let start = off.min(forces.len());
+    for (w, slot) in forces[start..].iter_mut().take(W).enumerate() {
+        for k in 0..3 {
+            for c in 0..3 {
+                slot[3 * k + c] = f[k][c][w];
+            }
+        }
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     //! The phases entered through `pulp`'s x86-64-v3 token, four lanes in
@@ -1034,7 +1093,7 @@ mod avx2 {
         }
     }
 
-    pub(super) struct Avx2Moments<'a> {
+    pub(super) struct Avx2Moments<'a, const ADD: bool> {
         pub simd: pulp::x86::V3,
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
@@ -1044,7 +1103,7 @@ mod avx2 {
         pub forces: &'a mut [[f64; 9]],
     }
 
-    impl pulp::WithSimd for Avx2Moments<'_> {
+    impl<const ADD: bool> pulp::WithSimd for Avx2Moments<'_, ADD> {
         type Output = Option<usize>;
         #[inline(always)]
         fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
@@ -1058,7 +1117,7 @@ mod avx2 {
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
                 let slots = &mut self.forces[b * LANES..end];
-                let failed = moment_lanes::<F64x4, LANES>(
+                let failed = moment_lanes::<F64x4, LANES, ADD>(
                     ctx,
                     batch,
                     geo,
