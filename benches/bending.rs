@@ -133,7 +133,7 @@ fn element_cycles(criterion: &mut Criterion) {
     });
     group.bench_function("phase2_moments", |b| {
         b.iter(|| {
-            pass.moments(
+            pass.moments::<true>(
                 0,
                 &scratch.geometry,
                 &scratch.normals,

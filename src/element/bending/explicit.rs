@@ -449,23 +449,7 @@ impl BendingPass {
     /// The first element of these batches with a folded hinge, a clamped
     /// hinge turned to or past 90° or a non-finite result.
     #[allow(clippy::too_many_arguments)]
-    pub fn moments(
-        &self,
-        first: usize,
-        geometry: &[GeometryBatch],
-        normals: &[[f64; 4]],
-        ghosts: &[GhostState],
-        hinges: &mut [HingeBatch],
-        moments: &mut [[f64; 4]],
-        forces: &mut [[f64; 9]],
-    ) -> Result<(), BendingFailure> {
-        self.moments_with::<true>(first, geometry, normals, ghosts, hinges, moments, forces)
-    }
-
-    /// [`BendingPass::moments`], the own-energy forces added to `forces`
-    /// (`ADD`) or written over them.
-    #[allow(clippy::too_many_arguments)]
-    fn moments_with<const ADD: bool>(
+    pub fn moments<const ADD: bool>(
         &self,
         first: usize,
         geometry: &[GeometryBatch],
@@ -654,7 +638,7 @@ impl BendingPass {
             .zip(forces.par_chunks_mut(chunk * LANES))
             .enumerate()
             .map(|(c, ((hinges, moments), forces))| {
-                self.moments_with::<ADD>(
+                self.moments::<ADD>(
                     c * chunk,
                     geometry,
                     normals,
@@ -930,11 +914,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
         [f[1][0].store(), f[1][1].store(), f[1][2].store()],
         [f[2][0].store(), f[2][1].store(), f[2][2].store()],
     ];
-    if ADD {
-        scatter_add(forces, off, &stored);
-    } else {
-        scatter_store(forces, off, &stored);
-    }
+    scatter::<W, ADD>(forces, off, &stored);
     // Padding lanes never fail.
     if lanes < W {
         failed &= (1u32 << lanes) - 1;
@@ -1025,44 +1005,38 @@ fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
             (t[2] * n[2]).store(),
         ],
     ];
-    scatter_add(forces, off, &stored);
+    scatter::<W, true>(forces, off, &stored);
 }
 
-/// Adds node-major lane forces `f[k][c][w]` to the slots `off..off + W`
-/// that exist (the last batch may be partial).
+/// Adds (`ADD`) or writes node-major lane forces `f[k][c][w]` to the
+/// slots `off..off + W` that exist (the last batch may be partial).
 #[inline(always)]
-fn scatter_add<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; W]; 3]; 3]) {
+fn scatter<const W: usize, const ADD: bool>(
+    forces: &mut [[f64; 9]],
+    off: usize,
+    f: &[[[f64; W]; 3]; 3],
+) {
+    let put = |slot: &mut [f64; 9], w: usize| {
+        for k in 0..3 {
+            for c in 0..3 {
+                if ADD {
+                    slot[3 * k + c] += f[k][c][w];
+                } else {
+                    slot[3 * k + c] = f[k][c][w];
+                }
+            }
+        }
+    };
     let start = off.min(forces.len());
     let slots = &mut forces[start..];
     if slots.len() >= W {
+        // A whole batch (the common case) as a fixed-length loop.
         for (w, slot) in slots[..W].iter_mut().enumerate() {
-            for k in 0..3 {
-                for c in 0..3 {
-                    slot[3 * k + c] += f[k][c][w];
-                }
-            }
+            put(slot, w);
         }
     } else {
         for (w, slot) in slots.iter_mut().enumerate() {
-            for k in 0..3 {
-                for c in 0..3 {
-                    slot[3 * k + c] += f[k][c][w];
-                }
-            }
-        }
-    }
-}
-
-/// Writes node-major lane forces `f[k][c][w]` over the slots
-/// `off..off + W` that exist (the last batch may be partial).
-#[inline(always)]
-fn scatter_store<const W: usize>(forces: &mut [[f64; 9]], off: usize, f: &[[[f64; W]; 3]; 3]) {
-    let start = off.min(forces.len());
-    for (w, slot) in forces[start..].iter_mut().take(W).enumerate() {
-        for k in 0..3 {
-            for c in 0..3 {
-                slot[3 * k + c] = f[k][c][w];
-            }
+            put(slot, w);
         }
     }
 }
