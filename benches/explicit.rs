@@ -104,6 +104,7 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
             check_inversion: true,
             density: Some(DENSITY),
             roving_mass_length: 0.0,
+            roving_mass_coupling: ncform::element::RovingCoupling::Stretch,
         },
     );
     if forming {

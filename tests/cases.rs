@@ -1283,6 +1283,14 @@ fn explicit_settings_are_checked() {
         (
             append(
                 &explicit,
+                "\n[explicit]\nroving_mass_length = 6.5\nroving_mass_coupling = \"along\"\n",
+            ),
+            "roving_mass_coupling = ",
+            "explicit.roving_mass_coupling = \"along\": expected \"stretch\" or \"full\"",
+        ),
+        (
+            append(
+                &explicit,
                 "\n[explicit]\nroving_mass_length = 6.5\ndamping = 5.0\n",
             ),
             "damping = ",
@@ -1349,4 +1357,20 @@ fn explicit_settings_are_checked() {
     // 0.30 kg/m² at 0.3 mm is 1.0e-9 t/mm³ (docs/theory.md).
     let default = load(dir.path(), &explicit);
     assert!((default.density.unwrap() - 1.0e-9).abs() <= 1e-24);
+}
+
+/// docs/cases.md, `[explicit]`: the roving mass coupling is the stretch
+/// form unless the case asks for the full one (`"full"`), and the key is
+/// taken only with those two spellings (the refusals are in
+/// `explicit_settings_are_checked`).
+#[test]
+fn roving_mass_coupling_defaults_to_the_stretch_form() {
+    use ncform::element::RovingCoupling;
+    let base = format!("{BASE}\n[explicit]\nroving_mass_length = 6.5\n");
+    let case = OatCase::from_toml_str(&base, "embedded", Path::new(".")).unwrap();
+    assert_eq!(case.explicit.roving_mass_length, 6.5);
+    assert_eq!(case.explicit.roving_mass_coupling, RovingCoupling::Stretch);
+    let full = format!("{base}roving_mass_coupling = \"full\"\n");
+    let case = OatCase::from_toml_str(&full, "embedded", Path::new(".")).unwrap();
+    assert_eq!(case.explicit.roving_mass_coupling, RovingCoupling::Full);
 }

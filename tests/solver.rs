@@ -227,6 +227,7 @@ fn planar(model: &MembraneModel) -> Model {
             check_inversion: true,
             density: None,
             roving_mass_length: 0.0,
+            roving_mass_coupling: ncform::element::RovingCoupling::Stretch,
         },
     )
 }

@@ -18,9 +18,14 @@ use ncform::cli::run::Progress;
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 
-/// Cells per side of the coarse blank (the shipped cases have 84): 16.7 mm
-/// cells, the coarsest whose 20 × 20 mm zone windows each hold a centroid.
-const COARSE_CELLS: usize = 24;
+/// Cells per side of the coarse blank (the shipped cases have 84): 11.1 mm
+/// cells. On 24 × 24 (16.7 mm cells, the coarsest whose 20 × 20 mm zone
+/// windows each hold a centroid) the blank's edge snaps over the die's
+/// fillet in the last 1.5 mm of the stroke and KE/IE bursts to 15 %, with
+/// and without roving mass scaling alike: that mesh is too coarse to be
+/// quasi-static at the shipped stroke time (`docs/forming.md`, "Loading
+/// speed" of the tetrahedron bench).
+const COARSE_CELLS: usize = 36;
 
 fn cases_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("cases")
@@ -223,9 +228,8 @@ fn mirror_deviation_about_x0(contour: &[([f64; 2], [f64; 2])]) -> f64 {
 /// the openings, the [0°] rovings and the mirrored mesh all have that
 /// symmetry, so only round-off grown by the explicit dynamics remains);
 /// the punch pulls the blank in at every edge midpoint. Measured on this
-/// 24 × 24 blank: KE/IE at most 4.84 % (a burst at 93 % of the stroke,
-/// `docs/forming.md`, "Loading speed" of the tetrahedron bench), balance
-/// 5.1e-4, contour deviation 0.003 mm, 25 s.
+/// 36 × 36 blank with the shipped roving mass scaling: KE/IE at most
+/// 2.40 %, balance 1.1e-4, 13 s.
 #[test]
 fn tetrahedron_0_explicit_reaches_full_depth_quasi_static_and_symmetric() {
     let case = coarse("tetrahedron-0.toml", COARSE_CELLS);

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use crate::config::{ConfigError, TomlChecker};
+use crate::element::RovingCoupling;
 use crate::solver::NewtonParameters;
 use crate::solver::explicit::{
     Amplitude, DEFAULT_MAX_INCREMENTS, ExplicitParameters, TimeStepControl,
@@ -82,6 +83,7 @@ pub(super) struct ExplicitRaw {
     pub(super) time_step_update_interval: Option<Spanned<i64>>,
     pub(super) mass_scaling_time_step: Option<Spanned<f64>>,
     pub(super) roving_mass_length: Option<Spanned<f64>>,
+    pub(super) roving_mass_coupling: Option<Spanned<String>>,
     pub(super) damping: Option<Spanned<f64>>,
     pub(super) kinetic_energy_warning: Option<Spanned<f64>>,
     pub(super) energy_balance_warning: Option<Spanned<f64>>,
@@ -105,6 +107,9 @@ pub struct ExplicitSettings {
     pub mass_scaling_time_step: Option<f64>,
     /// Roving mass scaling length `ℓ` \[mm\] (0: off; `docs/explicit.md`).
     pub roving_mass_length: f64,
+    /// Which relative motion of the roving edges' nodes the roving masses
+    /// weigh on (`"stretch"`, the default, or `"full"`).
+    pub roving_mass_coupling: RovingCoupling,
     /// Mass-proportional damping `α` [1/s].
     pub damping: f64,
     /// KE/IE warning level.
@@ -224,6 +229,17 @@ impl ExplicitSettings {
                 &format!("a length in [0, {MAX_ROVING_MASS_LENGTH}] mm"),
             )?,
         };
+        let roving_mass_coupling = match &raw.roving_mass_coupling {
+            None => RovingCoupling::Stretch,
+            Some(c) => check.choice(
+                c,
+                "explicit.roving_mass_coupling",
+                &[
+                    ("stretch", RovingCoupling::Stretch),
+                    ("full", RovingCoupling::Full),
+                ],
+            )?,
+        };
         let damping = match &raw.damping {
             None => 0.0,
             Some(v) => check.range(v, "explicit.damping", |x| x >= 0.0, "a coefficient ≥ 0 1/s")?,
@@ -271,6 +287,7 @@ impl ExplicitSettings {
             time_step,
             mass_scaling_time_step,
             roving_mass_length,
+            roving_mass_coupling,
             damping,
             kinetic_energy_warning,
             energy_balance_warning,

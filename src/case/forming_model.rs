@@ -423,6 +423,7 @@ impl FormingCase {
                     check_inversion: false,
                     density: spec.density,
                     roving_mass_length: self.explicit.roving_mass_length,
+                    roving_mass_coupling: self.explicit.roving_mass_coupling,
                 },
             ));
             // Nodes no triangle uses carry no stiffness: fix them.

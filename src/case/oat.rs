@@ -603,6 +603,7 @@ impl OatCase {
                 check_inversion: true,
                 density: self.density,
                 roving_mass_length: self.explicit.roving_mass_length,
+                roving_mass_coupling: self.explicit.roving_mass_coupling,
             },
         )
     }

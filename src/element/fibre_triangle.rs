@@ -56,16 +56,33 @@ pub struct FibreTriangleForce {
 /// roving edge ([`FibreTriangle::roving_edge`]).
 pub const ROVING_EDGE_TOLERANCE: f64 = 1e-3;
 
+/// Which relative motion of a roving edge's two nodes its coupling mass
+/// weighs on (`docs/explicit.md`, "Roving mass scaling").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RovingCoupling {
+    /// Only the component along the edge's current direction `d`: the
+    /// rate of stretch of the roving, `⊗ d dᵀ`. Draping, bending and the
+    /// edge's rotation gain no mass.
+    #[default]
+    Stretch,
+    /// Every component of the relative velocity, `⊗ I3`.
+    Full,
+}
+
 /// The roving mass of one triangle: the mass share
-/// `(ρ t A0/3) κ (e_i − e_j)(e_i − e_j)ᵀ ⊗ I3` on its roving edge
-/// `[i, j]` (local nodes), `κ = ratio` (`docs/explicit.md`, "Roving mass
-/// scaling").
+/// `(ρ t A0/3) κ (e_i − e_j)(e_i − e_j)ᵀ ⊗ P` on its roving edge
+/// `[i, j]` (local nodes), `κ = ratio`, with `P = d dᵀ` (the edge's
+/// current direction `d`) or `I3` by `coupling` (`docs/explicit.md`,
+/// "Roving mass scaling").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RovingMass {
     /// The local nodes of the edge along the rovings.
     pub edge: [usize; 2],
     /// `κ`: the added mass per node of the edge over the lumped share.
     pub ratio: f64,
+    /// The components the coupling weighs on.
+    pub coupling: RovingCoupling,
 }
 
 impl FibreTriangle {
@@ -191,13 +208,24 @@ impl FibreTriangle {
     }
 
     /// [`FibreTriangle::max_frequency_squared`] with the element's mass
-    /// share `(ρ t A0/3) (I + κ d dᵀ) ⊗ I3` when `roving` is given
-    /// (`d = e_i − e_j` on the roving edge, `κ = roving.ratio`: roving mass
-    /// scaling, `docs/explicit.md`). Its inverse is
-    /// `(3/(ρ t A0)) W ⊗ I3` with `W = I − κ/(1 + 2κ) d dᵀ`, so the bound
-    /// keeps its form with the node sums `Σ_a x_a y_a` of `B Bᵀ` and `DᵀD`
-    /// replaced by `xᵀ W y`. Any `d` and `κ ≥ 0` give a bound for the mass
-    /// the solver assembles from the same shares.
+    /// share `(ρ t A0/3) (I + κ δ δᵀ ⊗ P)` when `roving` is given
+    /// (`δ = e_i − e_j` on the roving edge, `κ = roving.ratio`: roving mass
+    /// scaling, `docs/explicit.md`).
+    ///
+    /// - [`RovingCoupling::Full`] (`P = I3`): the inverse is
+    ///   `(3/(ρ t A0)) W ⊗ I3` with `W = I − κ/(1 + 2κ) δ δᵀ`, so the bound
+    ///   keeps its form with the node sums `Σ_a x_a y_a` of `B Bᵀ` and `DᵀD`
+    ///   replaced by `xᵀ W y`.
+    /// - [`RovingCoupling::Stretch`] (`P = â âᵀ`, `â = g1/|g1|` the edge's
+    ///   current direction): the inverse is `(3/(ρ t A0)) (I − w δ δᵀ ⊗
+    ///   â âᵀ)`, `w = κ/(1 + 2κ)`, so `B W Bᵀ = B Bᵀ − w p pᵀ` with
+    ///   `p_r = Σ_a δ_a (v_{r,a}·â)` of the strain rows `v_{r,a}`:
+    ///   `p = (δ1 √c11, δ2 c12/√c11, δ2 √c11 + δ1 c12/√c11)`. The geometric
+    ///   part keeps the lumped `DᵀD` (the mass only exceeds the lumped
+    ///   one, so this stays a bound).
+    ///
+    /// Any `δ` and `κ ≥ 0` give a bound for the mass the solver assembles
+    /// from the same shares.
     ///
     /// # Errors
     /// When the law rejects the state.
@@ -231,6 +259,32 @@ impl FibreTriangle {
             Some(RovingMass {
                 edge: [i, j],
                 ratio,
+                coupling: RovingCoupling::Stretch,
+            }) => {
+                let n1: [f64; 3] = self.grad.map(|g| g[0]);
+                let n2: [f64; 3] = self.grad.map(|g| g[1]);
+                let w = ratio / (1.0 + 2.0 * ratio);
+                let (d1, d2) = (n1[i] - n1[j], n2[i] - n2[j]);
+                let (p11, p22, p12) = (dot(&n1, &n1), dot(&n2, &n2), dot(&n1, &n2));
+                let root = c11.sqrt();
+                let along = c12 / root;
+                let p = [d1 * root, d2 * along, d2 * root + d1 * along];
+                let lumped = [
+                    [p11 * c11, p12 * c12, p12 * c11 + p11 * c12],
+                    [0.0, p22 * c22, p22 * c12 + p12 * c22],
+                    [0.0, 0.0, p22 * c11 + 2.0 * p12 * c12 + p11 * c22],
+                ];
+                for r in 0..3 {
+                    for q in r..3 {
+                        bbt[(r, q)] = lumped[r][q] - w * p[r] * p[q];
+                    }
+                }
+                dtd = Matrix2::new(p11, p12, p12, p22);
+            }
+            Some(RovingMass {
+                edge: [i, j],
+                ratio,
+                coupling: RovingCoupling::Full,
             }) => {
                 let n1: [f64; 3] = self.grad.map(|g| g[0]);
                 let n2: [f64; 3] = self.grad.map(|g| g[1]);

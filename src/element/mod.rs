@@ -11,7 +11,7 @@ pub use bending::{
     BendingElement, BendingError, BendingPass, BendingStiffness, BendingTopology, HingeKind,
 };
 pub use fibre_batch::FibreMesh;
-pub use fibre_triangle::{FibreTriangle, RovingMass};
+pub use fibre_triangle::{FibreTriangle, RovingCoupling, RovingMass};
 pub use membrane::{MembraneKinematics, MembraneReference, MembraneTangent};
 
 use crate::material::MaterialError;

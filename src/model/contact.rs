@@ -135,6 +135,8 @@ pub struct ToolContact {
     responses: Vec<ImplicitResponse>,
     explicit: Vec<PenaltyState>,
     springs: Vec<PenaltyContact>,
+    /// `Σ max(k_N, k_T)` of the springs [N/mm] (set with them).
+    spring_stiffness_sum: f64,
     /// Per node: the normal dashpot `c = ζ 2 √(k_N m)` [N·s/mm].
     dashpots: Vec<f64>,
     /// Per node: energy dissipated by the normal dashpot [N·mm] and its
@@ -189,6 +191,7 @@ impl ToolContact {
             responses: vec![ImplicitResponse::default_open(); n],
             explicit,
             springs: Vec::new(),
+            spring_stiffness_sum: 0.0,
             dashpots: Vec::new(),
             damped: vec![(0.0, Vector3::zeros()); n],
             clearances: vec![Clearance::UNKNOWN; n],
@@ -488,6 +491,11 @@ impl Term for ToolContact {
             springs.push(spring);
             self.dashpots.push(self.options.explicit_damping * critical);
         }
+        // Σ max(k_n, k_t) over the springs, in node order: the floating
+        // tool's share of the frequency bound (constant over the run).
+        self.spring_stiffness_sum = springs.iter().fold(0.0, |sum, spring| {
+            sum + spring.normal_stiffness().max(spring.tangential_stiffness())
+        });
         self.springs = springs;
         self.explicit = (0..self.nodes.len())
             .map(|i| PenaltyState::new(&self.relative(i, state.u)))
@@ -611,10 +619,7 @@ impl Term for ToolContact {
         if self.springs.is_empty() {
             return Ok(0.0);
         }
-        let mut max = 0.0_f64;
-        let mut sum_k = 0.0;
-        for i in 0..self.nodes.len() {
-            let spring = &self.springs[i];
+        let node_bound = |i: usize| {
             let o = &self.outputs[i];
             let penetration = if o.gap < 0.0 { -o.gap } else { 0.0 };
             let curvature = if penetration > 0.0 || o.friction_force > 0.0 {
@@ -625,20 +630,34 @@ impl Term for ToolContact {
             } else {
                 0.0
             };
-            let w2 = spring
-                .frequency_squared(
-                    masses.node[self.nodes[i]],
-                    penetration,
-                    o.friction_force,
-                    curvature,
-                )
-                .map_err(|e| self.failure(i, e.to_string()))?;
-            max = max.max(w2);
-            sum_k += spring.normal_stiffness().max(spring.tangential_stiffness());
+            self.springs[i].frequency_squared(
+                masses.node[self.nodes[i]],
+                penetration,
+                o.friction_force,
+                curvature,
+            )
+        };
+        // A maximum: the same in any order, so the nodes go in parallel.
+        let first_failure = AtomicUsize::new(usize::MAX);
+        let mut max = (0..self.nodes.len())
+            .into_par_iter()
+            .with_min_len(NODE_CHUNK)
+            .map(|i| {
+                node_bound(i).unwrap_or_else(|_| {
+                    first_failure.fetch_min(i, Ordering::Relaxed);
+                    0.0
+                })
+            })
+            .reduce(|| 0.0, f64::max);
+        if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
+            let reason = node_bound(i)
+                .err()
+                .map_or_else(String::new, |e| e.to_string());
+            return Err(self.failure(i, reason));
         }
         let tool_mass = masses.extra[self.extra];
         if tool_mass > 0.0 {
-            max = max.max(sum_k / tool_mass);
+            max = max.max(self.spring_stiffness_sum / tool_mass);
         }
         Ok(max)
     }

@@ -14,7 +14,9 @@ use super::term::{
     MassCoupling, MassScaling, Masses, State, Stencils, Term, TermEnergy, TermFailure,
 };
 use crate::element::membrane::ReferenceError;
-use crate::element::{ElementFailureKind, FibreMesh, MembraneReference, RovingMass};
+use crate::element::{
+    ElementFailureKind, FibreMesh, MembraneReference, RovingCoupling, RovingMass,
+};
 use crate::material::Material;
 
 /// Smallest run of elements one rayon task takes in the element loops.
@@ -94,6 +96,9 @@ pub struct MembraneOptions {
     /// mass scaling"): a mode of wavelength `λ` along the rovings gains
     /// about `(2πℓ/λ)²` of its mass, whatever the mesh.
     pub roving_mass_length: f64,
+    /// Which relative motion the roving masses weigh on: the stretch rate
+    /// along the rovings (default) or every component.
+    pub roving_mass_coupling: RovingCoupling,
 }
 
 /// The membrane of one ply as a force term.
@@ -136,6 +141,7 @@ impl MembraneTerm {
                         RovingMass {
                             edge,
                             ratio: 3.0 * length * length * inverse_length * inverse_length,
+                            coupling: options.roving_mass_coupling,
                         }
                     })
                 })
@@ -426,12 +432,22 @@ impl Term for MembraneTerm {
             if let Some(RovingMass {
                 edge: [i, j],
                 ratio,
+                coupling,
             }) = roving
             {
                 let nodes = &self.fibre.nodes[e];
+                let (a, b) = (nodes[*i] as usize, nodes[*j] as usize);
+                let stretch = match coupling {
+                    RovingCoupling::Stretch => {
+                        let edge = self.membrane.nodes[b] - self.membrane.nodes[a];
+                        Some([edge.x, edge.y, edge.z])
+                    }
+                    RovingCoupling::Full => None,
+                };
                 out.push(MassCoupling {
-                    nodes: [nodes[*i] as usize, nodes[*j] as usize],
+                    nodes: [a, b],
                     mass: ratio * self.element_density[e] * self.fibre.elements[e].volume / 3.0,
+                    stretch,
                 });
             }
         }

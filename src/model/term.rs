@@ -129,16 +129,24 @@ pub struct Masses {
     pub extra: Vec<f64>,
 }
 
-/// A coupling mass between two nodes: `mass (e_a − e_b)(e_a − e_b)ᵀ ⊗ I3`
-/// added to the lumped mass matrix (roving mass scaling,
-/// `docs/explicit.md`). It leaves rigid translations' kinetic energy
-/// unchanged and slows the relative motion of the two nodes.
+/// A coupling mass between two nodes added to the lumped mass matrix
+/// (roving mass scaling, `docs/explicit.md`): `mass (e_a − e_b)(e_a −
+/// e_b)ᵀ ⊗ I3` on every component of their relative motion, or, with
+/// `stretch`, `mass (e_a − e_b)(e_a − e_b)ᵀ ⊗ d dᵀ` on its component
+/// along the pair's *current* direction `d = (x_b − x_a)/|x_b − x_a|`
+/// only (the rate of stretch of the segment). Either leaves rigid
+/// translations' kinetic energy unchanged; the stretch form also leaves
+/// the segment's rotation and every motion across it unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MassCoupling {
     /// The two nodes.
     pub nodes: [usize; 2],
     /// The coupling mass \[t\].
     pub mass: f64,
+    /// With the stretch form: the reference vector `X_b − X_a` from the
+    /// first node to the second \[mm\] (the current one is this plus the
+    /// displacement difference); `None` for the form on all components.
+    pub stretch: Option<[f64; 3]>,
 }
 
 /// What mass scaling did to one term \[t\].

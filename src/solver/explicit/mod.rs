@@ -445,6 +445,7 @@ fn integrate(
      -> Result<(f64, f64, f64, TermEnergy), TermFailure> {
         system.gather_with_kinetic(
             &buffers.forces,
+            state.u,
             v,
             half_step,
             params.damping,

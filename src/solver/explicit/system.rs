@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::super::dofs::DofMap;
-use super::chains::MassChains;
+use super::chains::{MassChains, StretchEntry};
 use crate::model::{Masses, Model, NO_SLOT, State, TermFailure};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
@@ -158,8 +158,18 @@ pub struct ExplicitSystem {
     /// The coupling masses along chains (empty without roving mass
     /// scaling: then the node pass is the fused lumped one).
     chains: MassChains,
-    /// With coupling masses: the accelerations of one pass (3 per node).
-    accelerations: std::sync::Mutex<Vec<f64>>,
+    /// With coupling masses: the accelerations of one pass (3 per node)
+    /// and the chains' scratch.
+    accelerations: std::sync::Mutex<CoupledBuffers>,
+}
+
+/// The coupled node pass's buffers.
+#[derive(Debug, Default)]
+struct CoupledBuffers {
+    /// The accelerations of one pass (3 per node).
+    accelerations: Vec<f64>,
+    /// The chains' scratch ([`MassChains::scratch`]).
+    chains: Vec<StretchEntry>,
 }
 
 /// Union–find root of `n` with path halving.
@@ -355,9 +365,12 @@ impl ExplicitSystem {
             groups,
             group_count,
             accelerations: std::sync::Mutex::new(if chains.is_empty() {
-                Vec::new()
+                CoupledBuffers::default()
             } else {
-                vec![0.0; 3 * nodes]
+                CoupledBuffers {
+                    accelerations: vec![0.0; 3 * nodes],
+                    chains: chains.scratch(),
+                }
             }),
             chains,
         })
@@ -524,6 +537,7 @@ impl ExplicitSystem {
     pub fn gather_with_kinetic(
         &self,
         forces: &[f64],
+        u: &[f64],
         v_half: &[f64],
         half_step: f64,
         damping: f64,
@@ -535,6 +549,7 @@ impl ExplicitSystem {
         if !self.chains.is_empty() {
             self.gather_with_kinetic_coupled(
                 forces,
+                u,
                 v_half,
                 half_step,
                 internal,
@@ -642,9 +657,11 @@ impl ExplicitSystem {
     fn coupled_accelerations(
         &self,
         forces: &[f64],
-        accelerations: &mut [f64],
+        u: &[f64],
+        buffers: &mut CoupledBuffers,
         internal: Option<&mut [f64]>,
     ) {
+        let accelerations = buffers.accelerations.as_mut_slice();
         let body = |block: usize, a_block: &mut [f64], f_out: Option<&mut [f64]>| {
             let mut f = [0.0; 3];
             let mut f_out = f_out;
@@ -654,7 +671,7 @@ impl ExplicitSystem {
                 if let Some(out) = f_out.as_deref_mut() {
                     out[3 * i..3 * i + 3].copy_from_slice(&f);
                 }
-                let scale = if self.chains.on_chain(node) {
+                let scale = if self.chains.takes_force(node) {
                     1.0
                 } else {
                     self.inverse_mass[node]
@@ -679,7 +696,8 @@ impl ExplicitSystem {
                 .enumerate()
                 .for_each(|(block, a)| body(block, a, None)),
         }
-        self.chains.solve(accelerations);
+        self.chains
+            .solve(accelerations, u, buffers.chains.as_mut_slice());
     }
 
     /// [`ExplicitSystem::gather_with_kinetic`] with coupling masses (no
@@ -690,6 +708,7 @@ impl ExplicitSystem {
     fn gather_with_kinetic_coupled(
         &self,
         forces: &[f64],
+        u: &[f64],
         v_half: &[f64],
         half_step: f64,
         internal: &mut [f64],
@@ -701,8 +720,9 @@ impl ExplicitSystem {
             .accelerations
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
-        let velocities = guard.as_mut_slice();
-        self.coupled_accelerations(forces, velocities, Some(internal));
+        let buffers = &mut *guard;
+        self.coupled_accelerations(forces, u, buffers, Some(internal));
+        let velocities = buffers.accelerations.as_mut_slice();
         let blocks = self.node_blocks();
         velocities
             .par_chunks_mut(3 * NODE_BLOCK)
@@ -731,7 +751,9 @@ impl ExplicitSystem {
                 *kinetic_sum = kinetic;
                 *driven_sum = driven;
             });
-        kinetic_partial[0] += self.chains.coupling_kinetic_energy(velocities);
+        kinetic_partial[0] += self
+            .chains
+            .coupling_kinetic_energy(velocities, &buffers.chains);
         damping_partial[..blocks].fill(0.0);
     }
 
@@ -811,8 +833,9 @@ impl ExplicitSystem {
             .accelerations
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
-        let accelerations = guard.as_mut_slice();
-        self.coupled_accelerations(forces, accelerations, None);
+        let buffers = &mut *guard;
+        self.coupled_accelerations(forces, u, buffers, None);
+        let accelerations = buffers.accelerations.as_slice();
         let (u_nodes, u_extra) = u.split_at_mut(3 * self.nodes);
         let (v_nodes, v_extra) = v.split_at_mut(3 * self.nodes);
         let blocks = self.node_blocks();
