@@ -524,8 +524,10 @@ impl ExplicitSystem {
             .fold(0.0, |s, r| s + r)
     }
 
-    /// Gather pass without update, for outputs: the residual per dof into
-    /// `internal` and, per node block, the kinetic energy of the free dofs
+    /// Gather pass without update, for outputs, at the displacements `u`
+    /// (which set the stretch-form coupling masses' directions): the
+    /// residual per dof into `internal` and, per node block, the kinetic
+    /// energy of the free dofs
     /// with the velocity `v_n = v_{n−½} + (Δt/2)(a_n − α v_{n−½})` into
     /// `kinetic_partial`, and the energy the damping takes over that half
     /// step, `α m ((v_{n−½} + v_n)/2)² Δt/2`, into `damping_partial` (so
