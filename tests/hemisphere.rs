@@ -104,6 +104,9 @@ fn hemisphere_0_explicit_is_quasi_static_balanced_and_symmetric() {
     let out = TempDir::new().unwrap();
     let summary = run(&case, out.path());
     let explicit = summary.explicit.as_ref().unwrap();
+    // The shipped roving mass scaling, as the summary reports it.
+    assert_eq!(explicit.mass.coupling_form, "stretch");
+    assert_eq!(explicit.mass.coupled_nodes, 21 * 21);
     assert!(
         explicit.max_kinetic_ratio < 0.05,
         "KE/IE {}",

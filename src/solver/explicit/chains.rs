@@ -327,6 +327,16 @@ impl MassChains {
         self.stretch.is_some()
     }
 
+    /// The form, for reports: `"stretch"`, `"full"`, or `"none"` without
+    /// couplings.
+    pub fn form(&self) -> &'static str {
+        match (&self.stretch, self.order.is_empty()) {
+            (_, true) => "none",
+            (Some(_), false) => "stretch",
+            (None, false) => "full",
+        }
+    }
+
     /// Whether [`MassChains::solve`] takes node `n`'s right-hand side `r`
     /// itself (the full form, on a chain); otherwise it takes `r / m`
     /// (off the chains, and every node in the stretch form).

@@ -32,6 +32,9 @@ pub struct MassSummary {
     pub chains: usize,
     /// `Σ μ` of the coupling masses \[t\] (they add no translational mass).
     pub coupling_mass: f64,
+    /// The coupling masses' form: `"stretch"` (on the stretch rate
+    /// along each edge), `"full"` (on all components) or `"none"`.
+    pub coupling_form: &'static str,
 }
 
 /// Why a model cannot be integrated.
@@ -361,6 +364,7 @@ impl ExplicitSystem {
                 coupled_nodes: chains.nodes(),
                 chains: chains.count(),
                 coupling_mass: chains.coupling_mass(),
+                coupling_form: chains.form(),
             },
             groups,
             group_count,
