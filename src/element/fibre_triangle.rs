@@ -259,46 +259,36 @@ impl FibreTriangle {
             Some(RovingMass {
                 edge: [i, j],
                 ratio,
-                coupling: RovingCoupling::Stretch,
+                coupling,
             }) => {
                 let n1: [f64; 3] = self.grad.map(|g| g[0]);
                 let n2: [f64; 3] = self.grad.map(|g| g[1]);
                 let w = ratio / (1.0 + 2.0 * ratio);
                 let (d1, d2) = (n1[i] - n1[j], n2[i] - n2[j]);
-                let (p11, p22, p12) = (dot(&n1, &n1), dot(&n2, &n2), dot(&n1, &n2));
-                let root = c11.sqrt();
-                let along = c12 / root;
-                let p = [d1 * root, d2 * along, d2 * root + d1 * along];
-                let lumped = [
-                    [p11 * c11, p12 * c12, p12 * c11 + p11 * c12],
-                    [0.0, p22 * c22, p22 * c12 + p12 * c22],
-                    [0.0, 0.0, p22 * c11 + 2.0 * p12 * c12 + p11 * c22],
-                ];
-                for r in 0..3 {
-                    for q in r..3 {
-                        bbt[(r, q)] = lumped[r][q] - w * p[r] * p[q];
-                    }
+                let (mut p11, mut p22, mut p12) = (dot(&n1, &n1), dot(&n2, &n2), dot(&n1, &n2));
+                if coupling == RovingCoupling::Full {
+                    // W = I − w d dᵀ between the node sums.
+                    p11 -= w * d1 * d1;
+                    p22 -= w * d2 * d2;
+                    p12 -= w * d1 * d2;
                 }
-                dtd = Matrix2::new(p11, p12, p12, p22);
-            }
-            Some(RovingMass {
-                edge: [i, j],
-                ratio,
-                coupling: RovingCoupling::Full,
-            }) => {
-                let n1: [f64; 3] = self.grad.map(|g| g[0]);
-                let n2: [f64; 3] = self.grad.map(|g| g[1]);
-                let w = ratio / (1.0 + 2.0 * ratio);
-                let (d1, d2) = (n1[i] - n1[j], n2[i] - n2[j]);
-                let p11 = dot(&n1, &n1) - w * d1 * d1;
-                let p22 = dot(&n2, &n2) - w * d2 * d2;
-                let p12 = dot(&n1, &n2) - w * d1 * d2;
                 bbt[(0, 0)] = p11 * c11;
                 bbt[(1, 1)] = p22 * c22;
                 bbt[(2, 2)] = p22 * c11 + 2.0 * p12 * c12 + p11 * c22;
                 bbt[(0, 1)] = p12 * c12;
                 bbt[(0, 2)] = p12 * c11 + p11 * c12;
                 bbt[(1, 2)] = p22 * c12 + p12 * c22;
+                if coupling == RovingCoupling::Stretch {
+                    // B W Bᵀ = B Bᵀ − w p pᵀ, p the rows' components along â.
+                    let root = c11.sqrt();
+                    let along = c12 / root;
+                    let p = [d1 * root, d2 * along, d2 * root + d1 * along];
+                    for r in 0..3 {
+                        for q in r..3 {
+                            bbt[(r, q)] -= w * p[r] * p[q];
+                        }
+                    }
+                }
                 dtd = Matrix2::new(p11, p12, p12, p22);
             }
         }
