@@ -49,8 +49,6 @@ pub struct BendingTerm {
     elements: Vec<BendingElement>,
     pass: BendingPass,
     scratch: BendingScratch,
-    /// Per model node: how many bending stencils use it (mass shares).
-    stencil_counts: Vec<usize>,
     energies: Vec<f64>,
     /// Reference positions of every model node [mm].
     nodes: Vec<Vector3<f64>>,
@@ -90,7 +88,6 @@ impl BendingTerm {
         Ok(Self {
             name: name.into(),
             stiffness,
-            stencil_counts: topology.stencil_counts(),
             energies: vec![0.0; triangles.len()],
             elements,
             pass,
@@ -249,37 +246,61 @@ impl Term for BendingTerm {
             })
     }
 
-    /// `max_e` of the element bound with each node's mass shared among
-    /// the stencils that use it (`m_n / count_n`): a bound of
-    /// `λmax(M⁻¹ K_bending)` (`docs/bending.md`, "Frequency bound").
+    /// A node-row (Gershgorin) bound of `λmax(M⁻¹ K_bending)`: with the
+    /// element block bounds `β_ab ≥ ‖(K_e)_ab‖₂`
+    /// ([`BendingElement::block_bounds`]), each node's row of
+    /// `M^{-½} K M^{-½}` sums to at most `Σ_e Σ_b β_ab/√(m_n m_b)` over the
+    /// stencils at the node, and `λmax` is at most the largest row
+    /// (`docs/bending.md`, "Frequency bound", "Node rows").
     fn frequency_bound(&self, state: &State, masses: &Masses) -> Result<f64, TermFailure> {
         let first_failure = AtomicUsize::new(usize::MAX);
-        let max = (0..self.elements.len())
+        let mass_of = |n: usize| masses.node[n];
+        // Per element and slot: Σ_b min(β_ab, β_ba)/√m_b.
+        let element_rows: Vec<[f64; 6]> = (0..self.elements.len())
             .into_par_iter()
             .with_min_len(ELEMENT_MIN_LEN)
             .map(|e| {
                 let stencil = self.topology.stencil(e);
-                let shares: [f64; 6] = std::array::from_fn(|s| match stencil[s] {
-                    Some(n) => masses.node[n] / self.stencil_counts[n].max(1) as f64,
-                    None => 1.0,
-                });
-                match self.elements[e].max_frequency_squared(
-                    &self.positions(e, state.u),
-                    &self.stiffness,
-                    &shares,
-                ) {
-                    Ok(w2) => w2,
+                let inverse_roots: [f64; 6] =
+                    std::array::from_fn(|s| stencil[s].map_or(0.0, |n| 1.0 / mass_of(n).sqrt()));
+                if stencil
+                    .iter()
+                    .flatten()
+                    .any(|&n| !(mass_of(n) > 0.0 && mass_of(n).is_finite()))
+                {
+                    first_failure.fetch_min(e, Ordering::Relaxed);
+                    return [0.0; 6];
+                }
+                match self.elements[e].block_bounds(&self.positions(e, state.u), &self.stiffness) {
+                    Ok(beta) => std::array::from_fn(|a| {
+                        (0..6)
+                            .map(|b| beta[a][b].min(beta[b][a]) * inverse_roots[b])
+                            .sum()
+                    }),
                     Err(_) => {
                         first_failure.fetch_min(e, Ordering::Relaxed);
-                        0.0
+                        [0.0; 6]
                     }
                 }
             })
-            .reduce(|| 0.0, f64::max);
-        match first_failure.into_inner() {
-            usize::MAX => Ok(max),
-            e => Err(self.failure(e, "no frequency bound at this state".into())),
+            .collect();
+        if let e @ 0..usize::MAX = first_failure.into_inner() {
+            return Err(self.failure(e, "no frequency bound at this state".into()));
         }
+        let mut node_rows = vec![0.0; masses.node.len()];
+        for (e, rows) in element_rows.iter().enumerate() {
+            for (slot, node) in self.topology.stencil(e).iter().enumerate() {
+                if let Some(n) = node {
+                    node_rows[*n] += rows[slot];
+                }
+            }
+        }
+        Ok(node_rows
+            .iter()
+            .zip(&masses.node)
+            .filter(|(row, _)| **row > 0.0)
+            .map(|(row, m)| row / m.sqrt())
+            .fold(0.0, f64::max))
     }
 
     fn energy(&mut self, state: &State) -> Result<TermEnergy, TermFailure> {

@@ -845,21 +845,7 @@ impl BendingElement {
             let (grad_theta, grad_rho) = grads;
             let (rho, measure, slope) = (s.rho[i], hinge.measure, hinge.slope.abs());
             // ‖∇²θ‖_M from block norms over the hinge's slots.
-            let mut blocks = [[0.0; 6]; 6];
-            let own_bounds = s.own.hinge_jacobian_bounds(i);
-            for a in 0..3 {
-                for b in 0..3 {
-                    blocks[a][b] += own_bounds[a][b];
-                }
-            }
-            let partner_bounds = partner.hinge_jacobian_bounds(2);
-            for a in 0..3 {
-                for b in 0..3 {
-                    if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
-                        blocks[sa][sb] += partner_bounds[a][b];
-                    }
-                }
-            }
+            let blocks = theta_hessian_blocks(&s.own, partner, hinge, i);
             let theta_norm = scaled_block_bound(&blocks, masses, &used);
             let grad_theta_m2 = mass_norm_squared(&grad_theta, masses, &used);
             let grad_rho_m = mass_norm_squared(&grad_rho, masses, &used).sqrt();
@@ -913,6 +899,13 @@ impl BendingElement {
 
     /// A bound of `‖M^{-½} ∇²ρ_i M^{-½}‖₂` from block norms of Eq. (13).
     fn rho_hessian_bound(&self, s: &State, i: usize, masses: &[f64; 6]) -> f64 {
+        let used = [true, true, true, false, false, false];
+        scaled_block_bound(&self.rho_hessian_blocks(s, i), masses, &used)
+    }
+
+    /// Bounds `β_ab ≥ ‖(∇²ρ_i)_ab‖₂` of the 3×3 blocks of Eq. (13) (own
+    /// slots only; the others are zero).
+    fn rho_hessian_blocks(&self, s: &State, i: usize) -> [[f64; 6]; 6] {
         let own = &s.own;
         let l = s.lengths[i];
         let c0 = 1.0 / (2.0 * self.area);
@@ -928,9 +921,147 @@ impl BendingElement {
                         + own.norm * (2.0 * sm * sp / (l * l * l) + sm * sp / (l * l * l)));
             }
         }
-        let used = [true, true, true, false, false, false];
-        scaled_block_bound(&blocks, masses, &used)
+        blocks
     }
+
+    /// Bounds `β_ab ≥ ‖(K_e)_ab‖₂` \[N/mm\] of the 3×3 blocks of the element
+    /// tangent `K_e` at `x` \[mm\], slots `a, b` of the stencil (zero where a
+    /// slot is unused): the Gauss–Newton part `A0 Σ_v D_v ∇κ_v ∇κ_vᵀ`
+    /// through the exact Frobenius norm of each block, the rest through the
+    /// block bounds of [`BendingElement::max_frequency_squared`] term by
+    /// term (docs/bending.md, "Frequency bound", "Node rows"). With them a
+    /// node's row of `M^{-½} K M^{-½}` sums to at most
+    /// `Σ_e Σ_b β_ab/√(m_n m_b)` over the stencils at the node, a bound of
+    /// the assembled `λmax(M⁻¹ K)` with each node's whole mass.
+    ///
+    /// # Errors
+    /// As [`BendingElement::curvature`].
+    pub fn block_bounds(
+        &self,
+        x: &[V3; 6],
+        stiffness: &BendingStiffness,
+    ) -> Result<[[f64; 6]; 6], BendingError> {
+        let s = self.state(x, stiffness)?;
+        let mut used = [true, true, true, false, false, false];
+        for i in 0..3 {
+            used[3 + i] = self.kinds[i] == HingeKind::Neighbour;
+        }
+        let slot_norms = |v: &StencilVector| -> [f64; 6] {
+            std::array::from_fn(|slot| {
+                if used[slot] {
+                    v.fixed_rows::<3>(3 * slot).norm()
+                } else {
+                    0.0
+                }
+            })
+        };
+        let mut beta = [[0.0; 6]; 6];
+        let mut grad_phi = [StencilVector::zeros(); 3];
+        for (i, gp) in grad_phi.iter_mut().enumerate() {
+            let grads = self.hinge_gradients(&s, i);
+            *gp = Self::phi_gradient(&s, i, &grads);
+            let hinge = &s.hinges[i];
+            let Some(partner) = &hinge.partner else {
+                continue;
+            };
+            let (grad_theta, grad_rho) = grads;
+            let (rho, measure, slope) = (s.rho[i], hinge.measure, hinge.slope.abs());
+            let theta = theta_hessian_blocks(&s.own, partner, hinge, i);
+            let rho_blocks = self.rho_hessian_blocks(&s, i);
+            let (t, r) = (slot_norms(&grad_theta), slot_norms(&grad_rho));
+            let mu = s.mu[i].abs();
+            for a in 0..6 {
+                for b in 0..6 {
+                    beta[a][b] += mu
+                        * (rho * slope * theta[a][b]
+                            + rho * hinge.bend.abs() * t[a] * t[b]
+                            + measure.abs() * rho_blocks[a][b]
+                            + slope * (t[a] * r[b] + r[a] * t[b]));
+                }
+            }
+        }
+        // The fibre-stretch terms (Eq. (11a)), block by block as in
+        // `max_frequency_squared`.
+        let grad_stretch = self.stretch_gradients(&s);
+        let stretch = grad_stretch.map(|g| slot_norms(&g));
+        let mixed = self.mixed_vectors(&s, &grad_phi).map(|v| slot_norms(&v));
+        let stretch_hessian = Self::stretch_hessian(&s);
+        for alpha in 0..2 {
+            let p = &self.fibre_gradients[alpha];
+            for a in 0..6 {
+                for b in 0..6 {
+                    beta[a][b] +=
+                        stretch[alpha][a] * mixed[alpha][b] + mixed[alpha][a] * stretch[alpha][b];
+                    for gamma in 0..2 {
+                        beta[a][b] += stretch_hessian[alpha][gamma].abs()
+                            * stretch[alpha][a]
+                            * stretch[gamma][b];
+                    }
+                }
+            }
+            for a in 0..3 {
+                for b in 0..3 {
+                    beta[a][b] += s.stretch_forces[alpha].abs() * 2.0 * (p[a] * p[b]).abs();
+                }
+            }
+        }
+        // Gauss–Newton part: ‖A0 Σ_v D_v g_v[a] g_v[b]ᵀ‖_F² =
+        // A0² Σ_vw D_v D_w (g_v[a]·g_w[a]) (g_v[b]·g_w[b]).
+        let grad_kappa = self.curvature_gradients(&s, &grad_phi, &grad_stretch);
+        let d = stiffness.diagonal();
+        let grams: [M3; 6] = std::array::from_fn(|slot| {
+            M3::from_fn(|v, w| {
+                grad_kappa[v]
+                    .fixed_rows::<3>(3 * slot)
+                    .dot(&grad_kappa[w].fixed_rows::<3>(3 * slot))
+            })
+        });
+        for a in 0..6 {
+            if !used[a] {
+                continue;
+            }
+            for b in 0..6 {
+                if !used[b] {
+                    continue;
+                }
+                let mut frobenius = 0.0;
+                for v in 0..3 {
+                    for w in 0..3 {
+                        frobenius += d[v] * d[w] * grams[a][(v, w)] * grams[b][(v, w)];
+                    }
+                }
+                beta[a][b] += self.area * frobenius.max(0.0).sqrt();
+            }
+        }
+        Ok(beta)
+    }
+}
+
+/// Bounds `β_ab ≥ ‖(∇²θ_i)_ab‖₂` of the 3×3 blocks of hinge `i`'s angle
+/// Hessian over the stencil's slots, from the block norms of both
+/// triangles' hinge Jacobians (Eq. (12)).
+fn theta_hessian_blocks(
+    own: &Triangle,
+    partner: &Triangle,
+    hinge: &Hinge,
+    i: usize,
+) -> [[f64; 6]; 6] {
+    let mut blocks = [[0.0; 6]; 6];
+    let own_bounds = own.hinge_jacobian_bounds(i);
+    for a in 0..3 {
+        for b in 0..3 {
+            blocks[a][b] += own_bounds[a][b];
+        }
+    }
+    let partner_bounds = partner.hinge_jacobian_bounds(2);
+    for a in 0..3 {
+        for b in 0..3 {
+            if let (Some(sa), Some(sb)) = (hinge.partner_slots[a], hinge.partner_slots[b]) {
+                blocks[sa][sb] += partner_bounds[a][b];
+            }
+        }
+    }
+    blocks
 }
 
 /// `‖M^{-½} A M^{-½}‖₂ ≤ max_a Σ_b min(β_ab, β_ba)/√(m_a m_b)` for a
