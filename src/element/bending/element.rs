@@ -821,10 +821,7 @@ impl BendingElement {
         masses: &[f64; 6],
     ) -> Result<f64, BendingError> {
         let s = self.state(x, stiffness)?;
-        let mut used = [true, true, true, false, false, false];
-        for i in 0..3 {
-            used[3 + i] = self.kinds[i] == HingeKind::Neighbour;
-        }
+        let used = self.used_slots();
         for slot in 0..6 {
             if used[slot] && !(masses[slot] > 0.0 && masses[slot].is_finite()) {
                 return Err(BendingError::InvalidMass {
@@ -903,6 +900,16 @@ impl BendingElement {
         scaled_block_bound(&self.rho_hessian_blocks(s, i), masses, &used)
     }
 
+    /// The stencil slots the element reads: its own three nodes, and the
+    /// partner's far node of every hinge with a neighbour.
+    fn used_slots(&self) -> [bool; 6] {
+        let mut used = [true, true, true, false, false, false];
+        for i in 0..3 {
+            used[3 + i] = self.kinds[i] == HingeKind::Neighbour;
+        }
+        used
+    }
+
     /// Bounds `β_ab ≥ ‖(∇²ρ_i)_ab‖₂` of the 3×3 blocks of Eq. (13) (own
     /// slots only; the others are zero).
     fn rho_hessian_blocks(&self, s: &State, i: usize) -> [[f64; 6]; 6] {
@@ -942,10 +949,7 @@ impl BendingElement {
         stiffness: &BendingStiffness,
     ) -> Result<[[f64; 6]; 6], BendingError> {
         let s = self.state(x, stiffness)?;
-        let mut used = [true, true, true, false, false, false];
-        for i in 0..3 {
-            used[3 + i] = self.kinds[i] == HingeKind::Neighbour;
-        }
+        let used = self.used_slots();
         let slot_norms = |v: &StencilVector| -> [f64; 6] {
             std::array::from_fn(|slot| {
                 if used[slot] {
