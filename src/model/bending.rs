@@ -16,7 +16,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::term::{Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure};
+use super::term::{
+    FrequencyBound, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure,
+};
 use crate::element::bending::{
     BendingElement, BendingError, BendingPass, BendingScratch, BendingStiffness, BendingTopology,
     TopologyError,
@@ -252,7 +254,11 @@ impl Term for BendingTerm {
     /// `M^{-½} K M^{-½}` sums to at most `Σ_e Σ_b β_ab/√(m_n m_b)` over the
     /// stencils at the node, and `λmax` is at most the largest row
     /// (`docs/bending.md`, "Frequency bound", "Node rows").
-    fn frequency_bound(&self, state: &State, masses: &Masses) -> Result<f64, TermFailure> {
+    fn frequency_bound(
+        &self,
+        state: &State,
+        masses: &Masses,
+    ) -> Result<FrequencyBound, TermFailure> {
         let first_failure = AtomicUsize::new(usize::MAX);
         let mass_of = |n: usize| masses.node[n];
         // Per element and slot: Σ_b min(β_ab, β_ba)/√m_b.
@@ -295,12 +301,14 @@ impl Term for BendingTerm {
                 }
             }
         }
-        Ok(node_rows
-            .iter()
-            .zip(&masses.node)
-            .filter(|(row, _)| **row > 0.0)
-            .map(|(row, m)| row / m.sqrt())
-            .fold(0.0, f64::max))
+        Ok(FrequencyBound::nodes(
+            node_rows
+                .iter()
+                .zip(&masses.node)
+                .filter(|(row, _)| **row > 0.0)
+                .map(|(row, m)| row / m.sqrt())
+                .fold(0.0, f64::max),
+        ))
     }
 
     fn energy(&mut self, state: &State) -> Result<TermEnergy, TermFailure> {

@@ -23,7 +23,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::term::{Augmentation, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure};
+use super::term::{
+    Augmentation, FrequencyBound, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure,
+};
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
     PenaltyContact, PenaltyState, couple_tool_translation, max_curvature, normal_dashpot,
@@ -135,8 +137,6 @@ pub struct ToolContact {
     responses: Vec<ImplicitResponse>,
     explicit: Vec<PenaltyState>,
     springs: Vec<PenaltyContact>,
-    /// `Σ max(k_N, k_T)` of the springs [N/mm] (set with them).
-    spring_stiffness_sum: f64,
     /// Per node: the normal dashpot `c = ζ 2 √(k_N m)` [N·s/mm].
     dashpots: Vec<f64>,
     /// Per node: energy dissipated by the normal dashpot [N·mm] and its
@@ -191,7 +191,6 @@ impl ToolContact {
             responses: vec![ImplicitResponse::default_open(); n],
             explicit,
             springs: Vec::new(),
-            spring_stiffness_sum: 0.0,
             dashpots: Vec::new(),
             damped: vec![(0.0, Vector3::zeros()); n],
             clearances: vec![Clearance::UNKNOWN; n],
@@ -491,11 +490,6 @@ impl Term for ToolContact {
             springs.push(spring);
             self.dashpots.push(self.options.explicit_damping * critical);
         }
-        // Σ max(k_n, k_t) over the springs, in node order: the floating
-        // tool's share of the frequency bound (constant over the run).
-        self.spring_stiffness_sum = springs.iter().fold(0.0, |sum, spring| {
-            sum + spring.normal_stiffness().max(spring.tangential_stiffness())
-        });
         self.springs = springs;
         self.explicit = (0..self.nodes.len())
             .map(|i| PenaltyState::new(&self.relative(i, state.u)))
@@ -608,16 +602,24 @@ impl Term for ToolContact {
         Ok(())
     }
 
-    /// `max_n ω_n²` of the contact springs (with the tool's curvature and
-    /// the current forces, `docs/contact-kernels.md`), and for a floating
-    /// tool `Σ k_n / M` of its dof on all its springs. The curvature counts
-    /// only where the node presses into the tool (`p > 0` or `|t| > 0`):
-    /// there the tool is queried again at the node's last relative position
-    /// (the one [`Term::explicit_forces`] saw, so the same answer), which
-    /// keeps the Hessian out of the force pass.
-    fn frequency_bound(&self, _state: &State, masses: &Masses) -> Result<f64, TermFailure> {
+    /// `max_n ω_n²` of the contact springs on the node dofs (with the
+    /// tool's curvature and the current forces, `docs/contact-kernels.md`),
+    /// and for a floating tool `Σ_n ω_n² m_n / M` on its dof: each spring
+    /// `H_n` acts on `y_n = x_n − q d`, so the node block is block-diagonal
+    /// (`‖H_n‖/m_n ≤ ω_n²`), the tool's block is `Σ_n dᵀH_n d / M`, and the
+    /// coupling block's squared norm `Σ_n |H_n d|²/(m_n M)` is at most the
+    /// product of the two ([`FrequencyBound`]). The curvature counts only
+    /// where the node presses into the tool (`p > 0` or `|t| > 0`): there
+    /// the tool is queried again at the node's last relative position (the
+    /// one [`Term::explicit_forces`] saw, so the same answer), which keeps
+    /// the Hessian out of the force pass.
+    fn frequency_bound(
+        &self,
+        _state: &State,
+        masses: &Masses,
+    ) -> Result<FrequencyBound, TermFailure> {
         if self.springs.is_empty() {
-            return Ok(0.0);
+            return Ok(FrequencyBound::default());
         }
         let node_bound = |i: usize| {
             let o = &self.outputs[i];
@@ -637,9 +639,10 @@ impl Term for ToolContact {
                 curvature,
             )
         };
-        // A maximum: the same in any order, so the nodes go in parallel.
+        // Per node in parallel; the maximum and the tool's sum then in node
+        // order (the same sum on any number of threads).
         let first_failure = AtomicUsize::new(usize::MAX);
-        let mut max = (0..self.nodes.len())
+        let bounds: Vec<f64> = (0..self.nodes.len())
             .into_par_iter()
             .with_min_len(NODE_CHUNK)
             .map(|i| {
@@ -648,18 +651,25 @@ impl Term for ToolContact {
                     0.0
                 })
             })
-            .reduce(|| 0.0, f64::max);
+            .collect();
         if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
             let reason = node_bound(i)
                 .err()
                 .map_or_else(String::new, |e| e.to_string());
             return Err(self.failure(i, reason));
         }
+        let nodes = bounds.iter().fold(0.0_f64, |m, b| m.max(*b));
         let tool_mass = masses.extra[self.extra];
-        if tool_mass > 0.0 {
-            max = max.max(self.spring_stiffness_sum / tool_mass);
-        }
-        Ok(max)
+        let extras = if tool_mass > 0.0 {
+            bounds
+                .iter()
+                .zip(&self.nodes)
+                .fold(0.0, |sum, (b, n)| sum + b * masses.node[*n])
+                / tool_mass
+        } else {
+            0.0
+        };
+        Ok(FrequencyBound { nodes, extras })
     }
 
     fn energy(&mut self, _state: &State) -> Result<TermEnergy, TermFailure> {

@@ -11,7 +11,8 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::term::{
-    MassCoupling, MassScaling, Masses, State, Stencils, Term, TermEnergy, TermFailure,
+    FrequencyBound, MassCoupling, MassScaling, Masses, State, Stencils, Term, TermEnergy,
+    TermFailure,
 };
 use crate::element::membrane::ReferenceError;
 use crate::element::{
@@ -469,7 +470,11 @@ impl Term for MembraneTerm {
     /// `max_e ω_e²` with the element's own lumped mass share: a bound of
     /// `λmax(M⁻¹K)` of the assembled membrane, since the node masses are
     /// the sums of the element shares (`docs/explicit.md`).
-    fn frequency_bound(&self, state: &State, _masses: &Masses) -> Result<f64, TermFailure> {
+    fn frequency_bound(
+        &self,
+        state: &State,
+        _masses: &Masses,
+    ) -> Result<FrequencyBound, TermFailure> {
         self.density_or_error()?;
         let law = &self.membrane.material;
         // A failing element maps to +∞, which no state reaches otherwise.
@@ -489,7 +494,7 @@ impl Term for MembraneTerm {
             })
             .reduce(|| 0.0, f64::max);
         if max.is_finite() {
-            Ok(max)
+            Ok(FrequencyBound::nodes(max))
         } else {
             Err(self.frequency_failure(state.u))
         }

@@ -19,8 +19,8 @@ pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
 pub use ply_contact::{PlyContact, PlyContactOptions, PlyNodeContact, PlySurface};
 pub use term::{
-    Augmentation, MassCoupling, MassScaling, Masses, NO_SLOT, State, Stencils, Term, TermEnergy,
-    TermFailure,
+    Augmentation, FrequencyBound, MassCoupling, MassScaling, Masses, NO_SLOT, State, Stencils,
+    Term, TermEnergy, TermFailure,
 };
 
 /// A dof of a rigid body (a tool's translation along its axis).

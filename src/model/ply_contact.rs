@@ -22,7 +22,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::term::{Masses, State, Stencils, Term, TermEnergy, TermFailure};
+use super::term::{FrequencyBound, Masses, State, Stencils, Term, TermEnergy, TermFailure};
 use crate::contact::SurfaceNormal;
 use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
 use crate::contact::ply_pair::{
@@ -618,9 +618,13 @@ impl Term for PlyContact {
     /// `b = (1, −w_1, −w_2, −w_3)`; with `ĉ = (1/√m_s, w_j/√m_j)` each
     /// node's row of `M^{-1/2} K M^{-1/2}` sums to at most
     /// `Σ_springs k ĉ_node Σ ĉ`.
-    fn frequency_bound(&self, _state: &State, masses: &Masses) -> Result<f64, TermFailure> {
+    fn frequency_bound(
+        &self,
+        _state: &State,
+        masses: &Masses,
+    ) -> Result<FrequencyBound, TermFailure> {
         if self.passes.is_empty() {
-            return Ok(0.0);
+            return Ok(FrequencyBound::default());
         }
         let n0 = self.plies[0].nodes.len();
         let mut rows = vec![0.0; self.node_forces.len()];
@@ -647,7 +651,7 @@ impl Term for PlyContact {
         if !max.is_finite() {
             return Err(self.failure(0, format!("frequency bound {max}")));
         }
-        Ok(max)
+        Ok(FrequencyBound::nodes(max))
     }
 
     fn energy(&mut self, _state: &State) -> Result<TermEnergy, TermFailure> {

@@ -129,6 +129,45 @@ pub struct Masses {
     pub extra: Vec<f64>,
 }
 
+/// A term's bound of `λmax` of its mass-scaled stiffness
+/// `S = M^{-1/2} K_term M^{-1/2}` [1/s²], split by the kind of dof
+/// (`docs/explicit.md`, "The stable time step"): `nodes` bounds the block
+/// on node dofs, `extras` the block on extra dofs (a floating tool's
+/// translation), and the coupling block `C` between them obeys
+/// `‖C‖² ≤ nodes · extras`. The term's whole `λmax(S)` is then at most
+/// `nodes + extras` ([`FrequencyBound::total`]). A term without extra
+/// dofs has `extras = 0`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrequencyBound {
+    /// Bound of the node-dof block [1/s²].
+    pub nodes: f64,
+    /// Bound of the extra-dof block [1/s²].
+    pub extras: f64,
+}
+
+impl FrequencyBound {
+    /// A bound on node dofs only.
+    pub fn nodes(nodes: f64) -> Self {
+        Self { nodes, extras: 0.0 }
+    }
+
+    /// `nodes + extras`: the largest eigenvalue of
+    /// `[[nodes, √(nodes·extras)], [√(nodes·extras), extras]]`, which
+    /// bounds the term's whole `λmax(S)` (Rayleigh quotient on the two
+    /// blocks) [1/s²].
+    pub fn total(&self) -> f64 {
+        self.nodes + self.extras
+    }
+
+    /// Both parts times `factor`.
+    pub fn scaled(&self, factor: f64) -> Self {
+        Self {
+            nodes: factor * self.nodes,
+            extras: factor * self.extras,
+        }
+    }
+}
+
 /// A coupling mass between two nodes added to the lumped mass matrix
 /// (roving mass scaling, `docs/explicit.md`): `mass (e_a − e_b)(e_a −
 /// e_b)ᵀ ⊗ I3` on every component of their relative motion, or, with
@@ -323,14 +362,20 @@ pub trait Term: Send + Sync + std::any::Any {
         true
     }
 
-    /// An upper bound of `λmax(M⁻¹ K_term)` [1/s²] at `state` with the
-    /// lumped masses `masses`: the bounds of all terms add up to a bound of
-    /// the model's `ω²_max` (Weyl). Zero for a term without stiffness.
+    /// Upper bounds of `λmax(M⁻¹ K_term)` [1/s²] at `state` with the
+    /// lumped masses `masses`, split by the kind of dof
+    /// ([`FrequencyBound`]): the explicit solver combines the terms' bounds
+    /// into a bound of the model's `ω²_max` (`docs/explicit.md`, "The
+    /// stable time step"). Zero for a term without stiffness.
     ///
     /// # Errors
     /// The lowest-index stencil that cannot be evaluated.
-    fn frequency_bound(&self, _state: &State, _masses: &Masses) -> Result<f64, TermFailure> {
-        Ok(0.0)
+    fn frequency_bound(
+        &self,
+        _state: &State,
+        _masses: &Masses,
+    ) -> Result<FrequencyBound, TermFailure> {
+        Ok(FrequencyBound::default())
     }
 
     /// The term's energies at `state` (explicit outputs).

@@ -17,7 +17,7 @@
 //! the run reports it.
 
 use super::system::{ExplicitSystem, critical_step};
-use crate::model::{Model, State, TermFailure};
+use crate::model::{FrequencyBound, Model, State, TermFailure};
 
 /// A term whose bound is below this share of the sum is refreshed at every
 /// [`REFRESH_EVERY`]-th re-estimate only.
@@ -40,14 +40,14 @@ pub struct StaleGrowth {
 /// The terms' last bounds and their ages, for the re-estimates of a run.
 #[derive(Debug, Clone)]
 pub struct StepEstimator {
-    /// Each term's last refreshed bound `ω²_t` \[1/s²\].
-    bounds: Vec<f64>,
+    /// Each term's last refreshed bound.
+    bounds: Vec<FrequencyBound>,
     /// Re-estimates since each term's last refresh.
     ages: Vec<usize>,
     /// Per term: the refreshes that found the bound grown past the margin.
     growth: Vec<StaleGrowth>,
     /// The bounds entering the sum (scratch).
-    in_use: Vec<f64>,
+    in_use: Vec<FrequencyBound>,
 }
 
 impl StepEstimator {
@@ -62,7 +62,7 @@ impl StepEstimator {
         state: &State,
     ) -> Result<(Self, f64), TermFailure> {
         let bounds = system.term_bounds(model, state, true)?;
-        let critical = critical_step(system.combined_frequency(model, &bounds));
+        let critical = critical_step(system.combined_frequency(&bounds));
         let terms = bounds.len();
         Ok((
             Self {
@@ -86,29 +86,27 @@ impl StepEstimator {
         model: &Model,
         state: &State,
     ) -> Result<f64, TermFailure> {
-        let total = self.bounds.iter().fold(0.0, |s, b| s + b);
+        let total = self.bounds.iter().fold(0.0, |s, b| s + b.total());
         for (t, term) in model.terms.iter().enumerate() {
-            let last = self.bounds[t];
+            let last = self.bounds[t].total();
             let small =
                 last > 0.0 && last < SMALL_SHARE * total && !term.stiffness_from_time_step();
             if small && self.ages[t] + 1 < REFRESH_EVERY {
                 self.ages[t] += 1;
-                self.in_use[t] = STALE_MARGIN * last;
+                self.in_use[t] = self.bounds[t].scaled(STALE_MARGIN);
                 continue;
             }
             let fresh = term.frequency_bound(state, &system.masses)?;
-            if small && fresh > STALE_MARGIN * last {
+            if small && fresh.total() > STALE_MARGIN * last {
                 let growth = &mut self.growth[t];
                 growth.count += 1;
-                growth.largest_ratio = growth.largest_ratio.max(fresh / last);
+                growth.largest_ratio = growth.largest_ratio.max(fresh.total() / last);
             }
             self.bounds[t] = fresh;
             self.ages[t] = 0;
             self.in_use[t] = fresh;
         }
-        Ok(critical_step(
-            system.combined_frequency(model, &self.in_use),
-        ))
+        Ok(critical_step(system.combined_frequency(&self.in_use)))
     }
 
     /// Per term (in term order), the refreshes that found its bound grown

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::super::dofs::DofMap;
 use super::chains::{MassChains, StretchEntry};
-use crate::model::{Masses, Model, NO_SLOT, State, TermFailure};
+use crate::model::{FrequencyBound, Masses, Model, NO_SLOT, State, TermFailure};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
 /// added in block order, so sums do not depend on the thread count.
@@ -153,9 +153,10 @@ pub struct ExplicitSystem {
     pub driven: Vec<(usize, f64)>,
     /// Mass figures.
     pub mass: MassSummary,
-    /// Per term whose stiffness does not follow from the step: its group
-    /// of terms on connected node sets (`None`: no node slot); the number
-    /// of groups.
+    /// Per term: the group of connected nodes all its node slots lie in
+    /// (the components of the terms whose stiffness is their own), `None`
+    /// for a term without stiffness or node slots or one whose nodes span
+    /// several groups; the number of groups.
     groups: Vec<Option<usize>>,
     group_count: usize,
     /// The coupling masses along chains (empty without roving mass
@@ -213,11 +214,13 @@ impl ExplicitSystem {
         let mut node_slots: Vec<(usize, u32)> = Vec::new();
         let mut extra_slots: Vec<(usize, u32)> = Vec::new();
         let mut offset = 0usize;
-        // Node groups of the terms whose stiffness is their own (membrane,
-        // bending): terms on disjoint node sets are decoupled blocks.
+        // Node groups: the connected components of the terms whose
+        // stiffness is their own (membrane, bending); terms on disjoint node
+        // sets are decoupled blocks.
         let mut parent: Vec<usize> = (0..nodes).collect();
-        let mut first_nodes: Vec<Option<usize>> = Vec::with_capacity(model.terms.len());
+        let mut term_node_slots = Vec::with_capacity(model.terms.len());
         for term in &model.terms {
+            let first_slot = node_slots.len();
             let layout = term.explicit_stencils();
             let grouped = term.has_stiffness() && !term.stiffness_from_time_step();
             let mut first: Option<usize> = None;
@@ -253,21 +256,34 @@ impl ExplicitSystem {
                 offset += size;
             }
             regions.push((start, offset));
-            first_nodes.push(if grouped { first } else { None });
+            term_node_slots.push(first_slot..node_slots.len());
         }
+        // Every term with stiffness whose nodes all lie in one component
+        // joins its group (a tool's contact with one ply: the ply's group);
+        // a term spanning components (contact between two plies) does not.
         let mut group_of_root = vec![usize::MAX; nodes];
         let mut group_count = 0;
-        let groups = first_nodes
+        let groups = model
+            .terms
             .iter()
-            .map(|first| {
-                first.map(|n| {
-                    let r = root(&mut parent, n);
-                    if group_of_root[r] == usize::MAX {
-                        group_of_root[r] = group_count;
-                        group_count += 1;
-                    }
-                    group_of_root[r]
-                })
+            .zip(&term_node_slots)
+            .map(|(term, slots)| {
+                if !term.has_stiffness() {
+                    return None;
+                }
+                let mut term_nodes = node_slots[slots.clone()]
+                    .iter()
+                    .map(|&(n, _)| n)
+                    .filter(|&n| n < nodes);
+                let first = root(&mut parent, term_nodes.next()?);
+                if term_nodes.any(|n| root(&mut parent, n) != first) {
+                    return None;
+                }
+                if group_of_root[first] == usize::MAX {
+                    group_of_root[first] = group_count;
+                    group_count += 1;
+                }
+                Some(group_of_root[first])
             })
             .collect();
         let csr = |count: usize, slots: &[(usize, u32)]| {
@@ -433,11 +449,11 @@ impl ExplicitSystem {
         with_penalties: bool,
     ) -> Result<f64, TermFailure> {
         let bounds = self.term_bounds(model, state, with_penalties)?;
-        Ok(critical_step(self.combined_frequency(model, &bounds)))
+        Ok(critical_step(self.combined_frequency(&bounds)))
     }
 
-    /// Each term's bound `ω²_t` \[1/s²\] at `state`, in term order; zero
-    /// for the terms whose stiffness follows from the step when
+    /// Each term's bound ([`FrequencyBound`]) at `state`, in term order;
+    /// zero for the terms whose stiffness follows from the step when
     /// `with_penalties` is false.
     ///
     /// # Errors
@@ -447,8 +463,8 @@ impl ExplicitSystem {
         model: &Model,
         state: &State,
         with_penalties: bool,
-    ) -> Result<Vec<f64>, TermFailure> {
-        let mut bounds = vec![0.0; model.terms.len()];
+    ) -> Result<Vec<FrequencyBound>, TermFailure> {
+        let mut bounds = vec![FrequencyBound::default(); model.terms.len()];
         for (term, bound) in model.terms.iter().zip(&mut bounds) {
             if with_penalties || !term.stiffness_from_time_step() {
                 *bound = term.frequency_bound(state, &self.masses)?;
@@ -458,25 +474,36 @@ impl ExplicitSystem {
     }
 
     /// `ω²` \[1/s²\] from the terms' bounds `bounds` (one per term, in term
-    /// order; Weyl: the bounds of terms add up). Terms whose stiffness is
-    /// their own and that act on disjoint node sets (the membranes and
-    /// bending of two plies) are decoupled blocks of `K`, so their groups
-    /// combine by the largest sum, not the sum of all:
-    /// `ω² = max_groups Σ_group ω²_t + Σ_penalty ω²_t`. With one group the
-    /// bounds are summed in term order.
-    pub fn combined_frequency(&self, model: &Model, bounds: &[f64]) -> f64 {
-        if self.group_count <= 1 {
-            return bounds.iter().fold(0.0, |s, b| s + b);
-        }
-        let mut sum = 0.0;
+    /// order; `docs/explicit.md`, "The stable time step"). On the node
+    /// dofs, the terms within one group of connected nodes add up (Weyl),
+    /// the groups are decoupled blocks of `K` and combine by the largest
+    /// sum, and the terms spanning groups add on top:
+    /// `n = max_g Σ_{t∈g} n_t + Σ_{t spanning} n_t`. The extra dofs' block
+    /// is bounded by `b = Σ_t b_t` and the coupling block's norm by
+    /// `c = Σ_t √(n_t b_t)` (triangle inequality), so
+    /// `ω² ≤ λmax [[n, c], [c, b]] = (n + b)/2 + √(((n − b)/2)² + c²)`,
+    /// or the plain sum `Σ_t (n_t + b_t)` where that is lower.
+    pub fn combined_frequency(&self, bounds: &[FrequencyBound]) -> f64 {
+        let mut spanning = 0.0;
+        let mut extras = 0.0;
+        let mut coupling = 0.0;
         let mut groups = vec![0.0; self.group_count];
-        for ((term, group), bound) in model.terms.iter().zip(&self.groups).zip(bounds) {
+        for (group, bound) in self.groups.iter().zip(bounds) {
             match group {
-                Some(g) if !term.stiffness_from_time_step() => groups[*g] += bound,
-                _ => sum += bound,
+                Some(g) => groups[*g] += bound.nodes,
+                None => spanning += bound.nodes,
             }
+            extras += bound.extras;
+            coupling += (bound.nodes * bound.extras).sqrt();
         }
-        sum + groups.iter().fold(0.0_f64, |m, g| m.max(*g))
+        let nodes = spanning + groups.iter().fold(0.0_f64, |m, g| m.max(*g));
+        if extras == 0.0 {
+            return nodes;
+        }
+        let half_gap = 0.5 * (nodes - extras);
+        let blocks = 0.5 * (nodes + extras) + (half_gap * half_gap + coupling * coupling).sqrt();
+        // Weyl's plain sum is a bound too; with extras it can be the lower.
+        blocks.min(bounds.iter().fold(0.0, |s, b| s + b.total()))
     }
 
     /// [`ExplicitSystem::critical_time_step_of`] with every term.
