@@ -71,10 +71,12 @@ struct ElementBatch {
     /// `4 p + j` of the partner's moment on the shared edge (in the flat
     /// moments array); `NONE` for free and clamped edges.
     partner_moment: [[u32; LANES]; 3],
-    /// 1 for an edge with a hinge, 0 for a free edge.
-    active: [Lanes; 3],
-    /// 1 for a clamped edge (measure `2 sin θ`), 0 otherwise.
-    clamped: [Lanes; 3],
+    /// Per edge, bit `l` set where lane `l`'s edge has a hinge (0 for a
+    /// free edge); [`lane_mask`] turns the bits into 1/0 lanes.
+    active: [u8; 3],
+    /// Per edge, bit `l` set where lane `l`'s edge is clamped (measure
+    /// `2 sin θ`).
+    clamped: [u8; 3],
     /// `c_i` (Voigt, 3 per edge).
     coefficients: [Lanes; 9],
     /// The weights of the squared fibre stretches in the squared edge
@@ -82,10 +84,11 @@ struct ElementBatch {
     /// `w4_k = −p_{k+1} p_{k+2}` (`p_a = ∂N_a/∂a0`), `w8_k` likewise with
     /// `∂N_a/∂b0` (docs/bending.md, "Explicit three-phase scheme").
     stretch_weights: [Lanes; 6],
-    /// `κ0`.
+    /// `κ0` (not read when every element of the pass is flat,
+    /// [`BendingPass`]'s `flat`).
     reference_curvature: [Lanes; 3],
-    /// `A0 · (B11, B22, B66)` [N·mm³].
-    moduli: [Lanes; 3],
+    /// `A0` [mm²] (the moduli `A0 · (B11, B22, B66)` are formed from it).
+    area: Lanes,
     /// `1/(2 A0)` [1/mm²].
     inv_double_area: Lanes,
 }
@@ -183,8 +186,43 @@ pub struct BendingPass {
     elements: Vec<BendingElement>,
     nodes: Vec<Vector3<f64>>,
     element_count: usize,
+    /// What every element shares in phase 2.
+    constants: PassConstants,
     /// Use the AVX2 path where the CPU has it.
     simd: bool,
+}
+
+/// What every element of a pass shares in phase 2.
+#[derive(Debug, Clone, Copy)]
+struct PassConstants {
+    /// `(B11, B22, B66)` [N·mm]: an element's moduli are `A0` times these.
+    moduli: [f64; 3],
+    /// Every element's reference curvature `κ0` is zero (a flat blank):
+    /// `κ − κ0` is `κ` and `κ0` is not read.
+    flat: bool,
+}
+
+/// Lane masks: row `b`, lane `l` is 1 where bit `l` of `b` is set, else 0.
+const LANE_MASKS: [[f64; LANES]; 1 << LANES] = {
+    let mut table = [[0.0; LANES]; 1 << LANES];
+    let mut b = 0;
+    while b < 1 << LANES {
+        let mut l = 0;
+        while l < LANES {
+            if b & (1 << l) != 0 {
+                table[b][l] = 1.0;
+            }
+            l += 1;
+        }
+        b += 1;
+    }
+    table
+};
+
+/// Lanes `off..off + W` of the 1/0 mask of the lane bits `bits`.
+#[inline(always)]
+fn lane_mask<V: Real<Array = [f64; W]>, const W: usize>(ctx: V, bits: u8, off: usize) -> V {
+    ld(ctx, &LANE_MASKS[bits as usize], off)
 }
 
 impl BendingPass {
@@ -258,12 +296,12 @@ impl BendingPass {
                 edges: [[0.0; LANES]; 6],
                 partner_normal: [[0; LANES]; 3],
                 partner_moment: [[NONE; LANES]; 3],
-                active: [[0.0; LANES]; 3],
-                clamped: [[0.0; LANES]; 3],
+                active: [0; 3],
+                clamped: [0; 3],
                 coefficients: [[0.0; LANES]; 9],
                 stretch_weights: [[0.0; LANES]; 6],
                 reference_curvature: [[0.0; LANES]; 3],
-                moduli: [[0.0; LANES]; 3],
+                area: [0.0; LANES],
                 inv_double_area: [0.0; LANES],
             };
             for l in 0..LANES {
@@ -286,12 +324,12 @@ impl BendingPass {
                         (HingeKind::Neighbour, Some(p)) => {
                             batch.partner_normal[i][l] = p.triangle as u32;
                             batch.partner_moment[i][l] = (4 * p.triangle + p.local) as u32;
-                            batch.active[i][l] = 1.0;
+                            batch.active[i] |= 1 << l;
                         }
                         (HingeKind::Clamped, _) => {
                             batch.partner_normal[i][l] = GHOST + ghost_of[e][i];
-                            batch.active[i][l] = 1.0;
-                            batch.clamped[i][l] = 1.0;
+                            batch.active[i] |= 1 << l;
+                            batch.clamped[i] |= 1 << l;
                         }
                         _ => batch.partner_normal[i][l] = e as u32,
                     }
@@ -304,8 +342,8 @@ impl BendingPass {
                 }
                 for v in 0..3 {
                     batch.reference_curvature[v][l] = element.reference_curvature[v];
-                    batch.moduli[v][l] = element.area * d[v];
                 }
+                batch.area[l] = element.area;
                 batch.inv_double_area[l] = 1.0 / (2.0 * element.area);
             }
             batches.push(batch);
@@ -317,6 +355,10 @@ impl BendingPass {
             elements: elements.to_vec(),
             nodes: nodes.to_vec(),
             element_count: count,
+            constants: PassConstants {
+                moduli: d,
+                flat: elements.iter().all(|e| e.reference_curvature == [0.0; 3]),
+            },
             simd: true,
         })
     }
@@ -467,6 +509,7 @@ impl BendingPass {
             if let Some(simd) = self.simd_token() {
                 let pass = Avx2Moments::<ADD> {
                     simd,
+                    constants: &self.constants,
                     batches,
                     own,
                     normals,
@@ -476,12 +519,28 @@ impl BendingPass {
                 };
                 failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
             } else {
-                failed = moments_scalar::<ADD>(batches, own, normals, ghosts, hinges, forces);
+                failed = moments_scalar::<ADD>(
+                    &self.constants,
+                    batches,
+                    own,
+                    normals,
+                    ghosts,
+                    hinges,
+                    forces,
+                );
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            failed = moments_scalar::<ADD>(batches, own, normals, ghosts, hinges, forces);
+            failed = moments_scalar::<ADD>(
+                &self.constants,
+                batches,
+                own,
+                normals,
+                ghosts,
+                hinges,
+                forces,
+            );
         }
         for (hinge, moments) in hinges.iter().zip(moments.chunks_exact_mut(LANES)) {
             for (l, m) in moments.iter_mut().enumerate() {
@@ -764,6 +823,7 @@ fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
 #[allow(clippy::too_many_arguments)]
 fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     ctx: V,
+    constants: &PassConstants,
     batch: &ElementBatch,
     own: &GeometryBatch,
     normals: &[[f64; 4]],
@@ -813,8 +873,8 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
             ctx.load(partner[1]),
             ctx.load(partner[2]),
         ];
-        let active = ld(ctx, &batch.active[i], off);
-        let clamped = ld(ctx, &batch.clamped[i], off);
+        let active = lane_mask(ctx, batch.active[i], off);
+        let clamped = lane_mask(ctx, batch.clamped[i], off);
         let not_clamped = one - clamped;
         let cos = vdot(&n, &partner);
         let one_plus_cos = one + cos;
@@ -850,8 +910,12 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
             k = k + phi[i] * ld(ctx, &batch.coefficients[3 * i + v], off);
         }
         kappa[v] = k * scales[v];
-        moment[v] = (kappa[v] - ld(ctx, &batch.reference_curvature[v], off))
-            * ld(ctx, &batch.moduli[v], off);
+        let change = if constants.flat {
+            kappa[v]
+        } else {
+            kappa[v] - ld(ctx, &batch.reference_curvature[v], off)
+        };
+        moment[v] = change * (ld(ctx, &batch.area, off) * constants.moduli[v]);
         scaled_moment[v] = moment[v] * scales[v];
     }
     let mut mu = [ctx; 3];
@@ -872,7 +936,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     let mut sigma = ctx.splat(0.0);
     let mut tau = [ctx; 3];
     for i in 0..3 {
-        let p = mu[i] * area_ratio * slope[i] * ld(ctx, &batch.active[i], off);
+        let p = mu[i] * area_ratio * slope[i] * lane_mask(ctx, batch.active[i], off);
         st(p, &mut hinge.moments[i], off);
         st(inv_length2[i], &mut hinge.inv_length2[i], off);
         pi[i] = p * inv_length2[i];
@@ -924,6 +988,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
 
 /// Phase 2 lane by lane (no SIMD); the first failing offset.
 fn moments_scalar<const ADD: bool>(
+    constants: &PassConstants,
     batches: &[ElementBatch],
     own: &[GeometryBatch],
     normals: &[[f64; 4]],
@@ -939,7 +1004,10 @@ fn moments_scalar<const ADD: bool>(
         let end = ((b + 1) * LANES).min(forces.len());
         let slots = &mut forces[b * LANES..end];
         for l in 0..LANES {
-            if moment_lanes::<f64, 1, ADD>(0.0, batch, geo, normals, ghosts, hinge, slots, l) != 0 {
+            if moment_lanes::<f64, 1, ADD>(
+                0.0, constants, batch, geo, normals, ghosts, hinge, slots, l,
+            ) != 0
+            {
                 return Some(b * LANES + l);
             }
         }
@@ -1069,6 +1137,7 @@ mod avx2 {
 
     pub(super) struct Avx2Moments<'a, const ADD: bool> {
         pub simd: pulp::x86::V3,
+        pub constants: &'a PassConstants,
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
         pub normals: &'a [[f64; 4]],
@@ -1093,6 +1162,7 @@ mod avx2 {
                 let slots = &mut self.forces[b * LANES..end];
                 let failed = moment_lanes::<F64x4, LANES, ADD>(
                     ctx,
+                    self.constants,
                     batch,
                     geo,
                     self.normals,
