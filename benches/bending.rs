@@ -150,6 +150,7 @@ fn element_cycles(criterion: &mut Criterion) {
             pass.hinge_forces(
                 0,
                 &scratch.geometry,
+                &scratch.normals,
                 &scratch.ghosts,
                 &scratch.hinges,
                 &scratch.moments,

@@ -93,11 +93,11 @@ struct ElementBatch {
     inv_double_area: Lanes,
 }
 
-/// Phase-1 output of a batch: the current own geometry.
+/// Phase-1 output of a batch: the current own geometry (the unit normals
+/// go to [`BendingScratch::normals`], one slot per element, which the
+/// phases read for the element itself and for its partners).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct GeometryBatch {
-    /// Unit normal `n` (x, y, z).
-    normal: [Lanes; 3],
     /// Current edges `e_0, e_1`.
     edges: [Lanes; 6],
     /// `|N| = 2A`.
@@ -218,6 +218,23 @@ const LANE_MASKS: [[f64; LANES]; 1 << LANES] = {
     }
     table
 };
+
+/// The unit normals of lanes `off..off + W` from their compact slots
+/// (`normals`, the batch's `LANES` slots), as three lane vectors.
+#[inline(always)]
+fn own_normal<V: Real<Array = [f64; W]>, const W: usize>(
+    ctx: V,
+    normals: &[[f64; 4]],
+    off: usize,
+) -> [V; 3] {
+    let mut lanes = [[0.0; W]; 3];
+    for w in 0..W {
+        for c in 0..3 {
+            lanes[c][w] = normals[off + w][c];
+        }
+    }
+    [ctx.load(lanes[0]), ctx.load(lanes[1]), ctx.load(lanes[2])]
+}
 
 /// Lanes `off..off + W` of the 1/0 mask of the lane bits `bits`.
 #[inline(always)]
@@ -436,24 +453,18 @@ impl BendingPass {
                 batches,
                 u,
                 geometry: &mut *geometry,
+                normals: &mut *normals,
             };
             <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
-        } else {
-            for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
-                for l in 0..LANES {
-                    geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
-                }
-            }
+            return;
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        for (batch, out) in batches.iter().zip(geometry.iter_mut()) {
+        for ((batch, out), normals) in batches
+            .iter()
+            .zip(geometry.iter_mut())
+            .zip(normals.chunks_exact_mut(LANES))
+        {
             for l in 0..LANES {
-                geometry_lanes::<f64, 1>(0.0, batch, u, out, l);
-            }
-        }
-        for (geo, normals) in geometry.iter().zip(normals.chunks_exact_mut(LANES)) {
-            for (l, normal) in normals.iter_mut().enumerate() {
-                *normal = [geo.normal[0][l], geo.normal[1][l], geo.normal[2][l], 0.0];
+                geometry_lanes::<f64, 1>(0.0, batch, u, out, normals, l);
             }
         }
     }
@@ -503,6 +514,7 @@ impl BendingPass {
     ) -> Result<(), BendingFailure> {
         let batches = &self.batches[first..first + hinges.len()];
         let own = &geometry[first..first + hinges.len()];
+        let own_normals = &normals[first * LANES..(first + hinges.len()) * LANES];
         let failed;
         #[cfg(target_arch = "x86_64")]
         {
@@ -512,6 +524,7 @@ impl BendingPass {
                     constants: &self.constants,
                     batches,
                     own,
+                    own_normals,
                     normals,
                     ghosts,
                     hinges: &mut *hinges,
@@ -523,6 +536,7 @@ impl BendingPass {
                     &self.constants,
                     batches,
                     own,
+                    own_normals,
                     normals,
                     ghosts,
                     hinges,
@@ -536,6 +550,7 @@ impl BendingPass {
                 &self.constants,
                 batches,
                 own,
+                own_normals,
                 normals,
                 ghosts,
                 hinges,
@@ -564,10 +579,12 @@ impl BendingPass {
     /// the partners' moments (`hinges` and `moments` of all elements, from
     /// phase 2) on the shared edges and the ghost-triangle terms of clamped
     /// edges, added to `forces`.
+    #[allow(clippy::too_many_arguments)]
     pub fn hinge_forces(
         &self,
         first: usize,
         geometry: &[GeometryBatch],
+        normals: &[[f64; 4]],
         ghosts: &[GhostState],
         hinges: &[HingeBatch],
         moments: &[[f64; 4]],
@@ -577,12 +594,14 @@ impl BendingPass {
         let batches = &self.batches[first..first + count];
         let own = &geometry[first..first + count];
         let own_hinges = &hinges[first..first + count];
+        let own_normals = &normals[first * LANES..(first + count) * LANES];
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = self.simd_token() {
             let pass = Avx2HingeForces {
                 simd,
                 batches,
                 own,
+                own_normals,
                 own_hinges,
                 moments,
                 forces: &mut *forces,
@@ -595,8 +614,9 @@ impl BendingPass {
         {
             let end = ((b + 1) * LANES).min(forces.len());
             let slots = &mut forces[b * LANES..end];
+            let own_normals = &own_normals[b * LANES..(b + 1) * LANES];
             for l in 0..slots.len() {
-                hinge_force_lanes::<f64, 1>(0.0, batch, geo, hinge, moments, slots, l);
+                hinge_force_lanes::<f64, 1>(0.0, batch, geo, own_normals, hinge, moments, slots, l);
             }
         }
         self.ghost_forces(first, ghosts, hinges, geometry, forces);
@@ -720,7 +740,7 @@ impl BendingPass {
             .par_chunks_mut(chunk * LANES)
             .enumerate()
             .for_each(|(c, forces)| {
-                self.hinge_forces(c * chunk, geometry, ghosts, hinges, moments, forces)
+                self.hinge_forces(c * chunk, geometry, normals, ghosts, hinges, moments, forces)
             });
         Ok(())
     }
@@ -785,6 +805,7 @@ fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     batch: &ElementBatch,
     u: &[f64],
     out: &mut GeometryBatch,
+    normals: &mut [[f64; 4]],
     off: usize,
 ) {
     // Gather the own nodes' displacements: du[k][c] lane by lane.
@@ -808,8 +829,15 @@ fn geometry_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     let big_n = vcross(&e0, &e1);
     let norm = vdot(&big_n, &big_n).sqrt();
     let inv_norm = ctx.splat(1.0) / norm;
+    let normal = [
+        (big_n[0] * inv_norm).store(),
+        (big_n[1] * inv_norm).store(),
+        (big_n[2] * inv_norm).store(),
+    ];
+    for w in 0..W {
+        normals[off + w] = [normal[0][w], normal[1][w], normal[2][w], 0.0];
+    }
     for c in 0..3 {
-        st(big_n[c] * inv_norm, &mut out.normal[c], off);
         st(e0[c], &mut out.edges[c], off);
         st(e1[c], &mut out.edges[3 + c], off);
     }
@@ -826,6 +854,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     constants: &PassConstants,
     batch: &ElementBatch,
     own: &GeometryBatch,
+    own_normals: &[[f64; 4]],
     normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinge: &mut HingeBatch,
@@ -834,12 +863,11 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
 ) -> u32 {
     let one = ctx.splat(1.0);
     let mut e = [[ctx; 3]; 3];
-    let mut n = [ctx; 3];
+    let n = own_normal(ctx, own_normals, off);
     for c in 0..3 {
         e[0][c] = ld(ctx, &own.edges[c], off);
         e[1][c] = ld(ctx, &own.edges[3 + c], off);
         e[2][c] = -(e[0][c] + e[1][c]);
-        n[c] = ld(ctx, &own.normal[c], off);
     }
     let norm = ld(ctx, &own.norm, off);
     let inv_norm = ld(ctx, &own.inv_norm, off);
@@ -987,10 +1015,12 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
 }
 
 /// Phase 2 lane by lane (no SIMD); the first failing offset.
+#[allow(clippy::too_many_arguments)]
 fn moments_scalar<const ADD: bool>(
     constants: &PassConstants,
     batches: &[ElementBatch],
     own: &[GeometryBatch],
+    own_normals: &[[f64; 4]],
     normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinges: &mut [HingeBatch],
@@ -1004,8 +1034,18 @@ fn moments_scalar<const ADD: bool>(
         let end = ((b + 1) * LANES).min(forces.len());
         let slots = &mut forces[b * LANES..end];
         for l in 0..LANES {
+            let own_normals = &own_normals[b * LANES..(b + 1) * LANES];
             if moment_lanes::<f64, 1, ADD>(
-                0.0, constants, batch, geo, normals, ghosts, hinge, slots, l,
+                0.0,
+                constants,
+                batch,
+                geo,
+                own_normals,
+                normals,
+                ghosts,
+                hinge,
+                slots,
+                l,
             ) != 0
             {
                 return Some(b * LANES + l);
@@ -1017,10 +1057,12 @@ fn moments_scalar<const ADD: bool>(
 
 /// Phase 3 for lanes `off..off + W` of one batch.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     ctx: V,
     batch: &ElementBatch,
     own: &GeometryBatch,
+    own_normals: &[[f64; 4]],
     hinge: &HingeBatch,
     moments: &[[f64; 4]],
     forces: &mut [[f64; 9]],
@@ -1051,11 +1093,7 @@ fn hinge_force_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         (pi[0] * gram[0] + partner_moment[1] + pi[2] * gram[1]) * inv_norm,
         (pi[0] * gram[2] + pi[1] * gram[1] + partner_moment[2]) * inv_norm,
     ];
-    let n = [
-        ld(ctx, &own.normal[0], off),
-        ld(ctx, &own.normal[1], off),
-        ld(ctx, &own.normal[2], off),
-    ];
+    let n = own_normal(ctx, own_normals, off);
     let stored: [[[f64; W]; 3]; 3] = [
         [
             (t[0] * n[0]).store(),
@@ -1122,6 +1160,7 @@ mod avx2 {
         pub batches: &'a [ElementBatch],
         pub u: &'a [f64],
         pub geometry: &'a mut [GeometryBatch],
+        pub normals: &'a mut [[f64; 4]],
     }
 
     impl pulp::WithSimd for Avx2Geometry<'_> {
@@ -1129,8 +1168,13 @@ mod avx2 {
         #[inline(always)]
         fn with_simd<S: pulp::Simd>(self, _: S) {
             let ctx = F64x4::new(self.simd, [0.0; LANES]);
-            for (batch, out) in self.batches.iter().zip(self.geometry.iter_mut()) {
-                geometry_lanes::<F64x4, LANES>(ctx, batch, self.u, out, 0);
+            for ((batch, out), normals) in self
+                .batches
+                .iter()
+                .zip(self.geometry.iter_mut())
+                .zip(self.normals.chunks_exact_mut(LANES))
+            {
+                geometry_lanes::<F64x4, LANES>(ctx, batch, self.u, out, normals, 0);
             }
         }
     }
@@ -1140,6 +1184,7 @@ mod avx2 {
         pub constants: &'a PassConstants,
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
+        pub own_normals: &'a [[f64; 4]],
         pub normals: &'a [[f64; 4]],
         pub ghosts: &'a [GhostState],
         pub hinges: &'a mut [HingeBatch],
@@ -1165,6 +1210,7 @@ mod avx2 {
                     self.constants,
                     batch,
                     geo,
+                    &self.own_normals[b * LANES..(b + 1) * LANES],
                     self.normals,
                     self.ghosts,
                     hinge,
@@ -1183,6 +1229,7 @@ mod avx2 {
         pub simd: pulp::x86::V3,
         pub batches: &'a [ElementBatch],
         pub own: &'a [GeometryBatch],
+        pub own_normals: &'a [[f64; 4]],
         pub own_hinges: &'a [HingeBatch],
         pub moments: &'a [[f64; 4]],
         pub forces: &'a mut [[f64; 9]],
@@ -1201,7 +1248,16 @@ mod avx2 {
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
                 let slots = &mut self.forces[b * LANES..end];
-                hinge_force_lanes::<F64x4, LANES>(ctx, batch, geo, hinge, self.moments, slots, 0);
+                hinge_force_lanes::<F64x4, LANES>(
+                    ctx,
+                    batch,
+                    geo,
+                    &self.own_normals[b * LANES..(b + 1) * LANES],
+                    hinge,
+                    self.moments,
+                    slots,
+                    0,
+                );
             }
         }
     }
