@@ -106,12 +106,10 @@ pub struct GeometryBatch {
     inv_norm: Lanes,
 }
 
-/// Phase-2 output of a batch.
+/// Phase-2 output of a batch (the moments `P_{e,i}` go to
+/// [`BendingScratch::moments`], one slot per element).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HingeBatch {
-    /// `P_{e,i} = μ_i J m'(θ_i)` [N·mm²] (`m' = cos(θ_i/2)`, `2 cos θ_i` on
-    /// clamped edges; zero on free edges).
-    moments: [Lanes; 3],
     /// `1/l_i²`.
     inv_length2: [Lanes; 3],
     /// `e_0·e_1, e_1·e_2, e_2·e_0`.
@@ -155,8 +153,10 @@ pub struct BendingScratch {
     /// Phase 1, one per element slot (`LANES` per batch): the unit normal,
     /// compact for the partners' gathers (one cache line each).
     pub normals: Vec<[f64; 4]>,
-    /// Phase 2, one per element slot: the moments `P_{e,i}`, compact for
-    /// the partners' gathers.
+    /// Phase 2, one per element slot: the moments
+    /// `P_{e,i} = μ_i J m'(θ_i)` [N·mm²] (`m' = cos(θ_i/2)`, `2 cos θ_i` on
+    /// clamped edges; zero on free edges), compact for the partners'
+    /// gathers.
     pub moments: Vec<[f64; 4]>,
 }
 
@@ -528,6 +528,7 @@ impl BendingPass {
                     normals,
                     ghosts,
                     hinges: &mut *hinges,
+                    moments,
                     forces,
                 };
                 failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
@@ -540,6 +541,7 @@ impl BendingPass {
                     normals,
                     ghosts,
                     hinges,
+                    moments,
                     forces,
                 );
             }
@@ -554,18 +556,9 @@ impl BendingPass {
                 normals,
                 ghosts,
                 hinges,
+                moments,
                 forces,
             );
-        }
-        for (hinge, moments) in hinges.iter().zip(moments.chunks_exact_mut(LANES)) {
-            for (l, m) in moments.iter_mut().enumerate() {
-                *m = [
-                    hinge.moments[0][l],
-                    hinge.moments[1][l],
-                    hinge.moments[2][l],
-                    0.0,
-                ];
-            }
         }
         match failed {
             Some(offset) => Err(BendingFailure {
@@ -607,7 +600,7 @@ impl BendingPass {
                 forces: &mut *forces,
             };
             <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
-            self.ghost_forces(first, ghosts, hinges, geometry, forces);
+            self.ghost_forces(first, ghosts, hinges, moments, geometry, forces);
             return;
         }
         for (b, (batch, (geo, hinge))) in batches.iter().zip(own.iter().zip(own_hinges)).enumerate()
@@ -619,7 +612,7 @@ impl BendingPass {
                 hinge_force_lanes::<f64, 1>(0.0, batch, geo, own_normals, hinge, moments, slots, l);
             }
         }
-        self.ghost_forces(first, ghosts, hinges, geometry, forces);
+        self.ghost_forces(first, ghosts, hinges, moments, geometry, forces);
     }
 
     /// The ghost-triangle hinge terms of the clamped edges of the elements
@@ -630,6 +623,7 @@ impl BendingPass {
         first: usize,
         ghosts: &[GhostState],
         hinges: &[HingeBatch],
+        moments: &[[f64; 4]],
         geometry: &[GeometryBatch],
         forces: &mut [[f64; 9]],
     ) {
@@ -643,7 +637,7 @@ impl BendingPass {
             let (b, l) = (e / LANES, e % LANES);
             let hinge = &hinges[b];
             let geo = &geometry[b];
-            let moment = hinge.moments[i][l] * hinge.inv_length2[i][l];
+            let moment = moments[e][i] * hinge.inv_length2[i][l];
             // e'_2 = x_b − x_a = −e_i.
             let own_edge = own_edge(geo, l, i);
             let edge2 = own_edge.map(|c| -c);
@@ -858,6 +852,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinge: &mut HingeBatch,
+    own_moments: &mut [[f64; 4]],
     forces: &mut [[f64; 9]],
     off: usize,
 ) -> u32 {
@@ -965,7 +960,10 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     let mut tau = [ctx; 3];
     for i in 0..3 {
         let p = mu[i] * area_ratio * slope[i] * lane_mask(ctx, batch.active[i], off);
-        st(p, &mut hinge.moments[i], off);
+        let lanes = p.store();
+        for w in 0..W {
+            own_moments[off + w][i] = lanes[w];
+        }
         st(inv_length2[i], &mut hinge.inv_length2[i], off);
         pi[i] = p * inv_length2[i];
         let mu_phi = mu[i] * phi[i];
@@ -1024,11 +1022,13 @@ fn moments_scalar<const ADD: bool>(
     normals: &[[f64; 4]],
     ghosts: &[GhostState],
     hinges: &mut [HingeBatch],
+    moments: &mut [[f64; 4]],
     forces: &mut [[f64; 9]],
 ) -> Option<usize> {
-    for (b, (batch, (geo, hinge))) in batches
+    for (b, ((batch, (geo, hinge)), own_moments)) in batches
         .iter()
         .zip(own.iter().zip(hinges.iter_mut()))
+        .zip(moments.chunks_exact_mut(LANES))
         .enumerate()
     {
         let end = ((b + 1) * LANES).min(forces.len());
@@ -1044,6 +1044,7 @@ fn moments_scalar<const ADD: bool>(
                 normals,
                 ghosts,
                 hinge,
+                own_moments,
                 slots,
                 l,
             ) != 0
@@ -1188,6 +1189,7 @@ mod avx2 {
         pub normals: &'a [[f64; 4]],
         pub ghosts: &'a [GhostState],
         pub hinges: &'a mut [HingeBatch],
+        pub moments: &'a mut [[f64; 4]],
         pub forces: &'a mut [[f64; 9]],
     }
 
@@ -1197,10 +1199,11 @@ mod avx2 {
         fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
             let ctx = F64x4::new(self.simd, [0.0; LANES]);
             let mut first_failure = None;
-            for (b, (batch, (geo, hinge))) in self
+            for (b, ((batch, (geo, hinge)), own_moments)) in self
                 .batches
                 .iter()
                 .zip(self.own.iter().zip(self.hinges.iter_mut()))
+                .zip(self.moments.chunks_exact_mut(LANES))
                 .enumerate()
             {
                 let end = ((b + 1) * LANES).min(self.forces.len());
@@ -1214,6 +1217,7 @@ mod avx2 {
                     self.normals,
                     self.ghosts,
                     hinge,
+                    own_moments,
                     slots,
                     0,
                 );
