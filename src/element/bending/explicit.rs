@@ -515,9 +515,8 @@ impl BendingPass {
         let batches = &self.batches[first..first + hinges.len()];
         let own = &geometry[first..first + hinges.len()];
         let own_normals = &normals[first * LANES..(first + hinges.len()) * LANES];
-        let failed;
-        #[cfg(target_arch = "x86_64")]
-        {
+        let failed = 'pass: {
+            #[cfg(target_arch = "x86_64")]
             if let Some(simd) = self.simd_token() {
                 let pass = Avx2Moments::<ADD> {
                     simd,
@@ -528,27 +527,12 @@ impl BendingPass {
                     normals,
                     ghosts,
                     hinges: &mut *hinges,
-                    moments,
-                    forces,
+                    moments: &mut *moments,
+                    forces: &mut *forces,
                 };
-                failed = <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
-            } else {
-                failed = moments_scalar::<ADD>(
-                    &self.constants,
-                    batches,
-                    own,
-                    own_normals,
-                    normals,
-                    ghosts,
-                    hinges,
-                    moments,
-                    forces,
-                );
+                break 'pass <pulp::x86::V3 as pulp::Simd>::vectorize(simd, pass);
             }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            failed = moments_scalar::<ADD>(
+            moments_scalar::<ADD>(
                 &self.constants,
                 batches,
                 own,
@@ -558,8 +542,8 @@ impl BendingPass {
                 hinges,
                 moments,
                 forces,
-            );
-        }
+            )
+        };
         match failed {
             Some(offset) => Err(BendingFailure {
                 element: first * LANES + offset,
@@ -733,8 +717,9 @@ impl BendingPass {
         forces
             .par_chunks_mut(chunk * LANES)
             .enumerate()
-            .for_each(|(c, forces)| {
-                self.hinge_forces(c * chunk, geometry, normals, ghosts, hinges, moments, forces)
+            .for_each(|(c, slots)| {
+                let first = c * chunk;
+                self.hinge_forces(first, geometry, normals, ghosts, hinges, moments, slots)
             });
         Ok(())
     }
