@@ -84,8 +84,8 @@ struct ElementBatch {
     /// `w4_k = −p_{k+1} p_{k+2}` (`p_a = ∂N_a/∂a0`), `w8_k` likewise with
     /// `∂N_a/∂b0` (docs/bending.md, "Explicit three-phase scheme").
     stretch_weights: [Lanes; 6],
-    /// `κ0` (not read when every element of the pass is flat,
-    /// [`BendingPass`]'s `flat`).
+    /// `κ0` (not read when every element of the pass is flat:
+    /// `PassConstants::flat`).
     reference_curvature: [Lanes; 3],
     /// `A0` [mm²] (the moduli `A0 · (B11, B22, B66)` are formed from it).
     area: Lanes,
