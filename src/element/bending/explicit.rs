@@ -857,6 +857,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     let outward = [vcross(&e[0], &n), vcross(&e[1], &n), vcross(&e[2], &n)];
     let area_ratio = norm * ld(ctx, &batch.inv_double_area, off);
     let mut phi = [ctx; 3];
+    let mut active = [ctx; 3];
     let mut slope = [ctx; 3];
     let mut failed = 0u32;
     for i in 0..3 {
@@ -881,7 +882,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
             ctx.load(partner[1]),
             ctx.load(partner[2]),
         ];
-        let active = lane_mask(ctx, batch.active[i], off);
+        active[i] = lane_mask(ctx, batch.active[i], off);
         let clamped = lane_mask(ctx, batch.clamped[i], off);
         let not_clamped = one - clamped;
         let cos = vdot(&n, &partner);
@@ -889,7 +890,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
         // l_i sin θ = −n'·(e_i × n).
         let length_sin = -vdot(&partner, &outward[i]);
         let zero = ctx.splat(0.0);
-        let fold = one_plus_cos.le(ctx.splat(FOLD_LIMIT)) & active.gt(zero) & clamped.le(zero);
+        let fold = one_plus_cos.le(ctx.splat(FOLD_LIMIT)) & active[i].gt(zero) & clamped.le(zero);
         let overturned = cos.le(ctx.splat(CLAMP_LIMIT)) & clamped.gt(zero);
         failed |= V::bits(fold | overturned);
         // Interior hinge: y = 2 cos(θ/2) = √(2(1 + cos θ)),
@@ -898,7 +899,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
         // m' = 2 cos θ (docs/bending.md, Eq. (2c)).
         let y = (one_plus_cos * 2.0 * not_clamped + clamped).sqrt();
         slope[i] = y * 0.5 * not_clamped + cos * 2.0 * clamped;
-        phi[i] = length_sin * 2.0 * area_ratio * inv_length2[i] / y * active;
+        phi[i] = length_sin * 2.0 * area_ratio * inv_length2[i] / y * active[i];
     }
     // Fibre stretches from the squared edge lengths (the metric of the
     // triangle): I4 = Σ_k w4_k l_k², I8 = Σ_k w8_k l_k²; the factors
@@ -944,7 +945,7 @@ fn moment_lanes<V: Real<Array = [f64; W]>, const W: usize, const ADD: bool>(
     let mut sigma = ctx.splat(0.0);
     let mut tau = [ctx; 3];
     for i in 0..3 {
-        let p = mu[i] * area_ratio * slope[i] * lane_mask(ctx, batch.active[i], off);
+        let p = mu[i] * area_ratio * slope[i] * active[i];
         let lanes = p.store();
         for w in 0..W {
             own_moments[off + w][i] = lanes[w];
@@ -1018,8 +1019,8 @@ fn moments_scalar<const ADD: bool>(
     {
         let end = ((b + 1) * LANES).min(forces.len());
         let slots = &mut forces[b * LANES..end];
+        let own_normals = &own_normals[b * LANES..(b + 1) * LANES];
         for l in 0..LANES {
-            let own_normals = &own_normals[b * LANES..(b + 1) * LANES];
             if moment_lanes::<f64, 1, ADD>(
                 0.0,
                 constants,
