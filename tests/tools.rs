@@ -1639,3 +1639,58 @@ fn bounded_queries_agree_with_unbounded_ones() {
     }
     assert!(checked > 10_000, "only {checked} queries compared");
 }
+
+/// The batch query answers what the point query answers, bit for bit, for
+/// every analytic shape, placed and behind a `Box<dyn RigidSurface>` (the
+/// way the explicit contact loop holds its tool), culled points included.
+#[test]
+fn batch_queries_repeat_point_queries() {
+    let mut rng = StdRng::seed_from_u64(43);
+    let placement = skew_placement();
+    let shapes: Vec<(&str, Box<dyn RigidSurface>)> = vec![
+        (
+            "plate with hole",
+            Box::new(Placed::new(
+                PlateWithHole::new(OPENING, FILLET).unwrap(),
+                placement,
+            )),
+        ),
+        (
+            "sphere",
+            Box::new(Placed::new(
+                Sphere::new(40.0, Side::Outside).unwrap(),
+                skew_placement(),
+            )),
+        ),
+        (
+            "cylinder",
+            Box::new(Cylinder::new(30.0, Side::Outside).unwrap()),
+        ),
+        (
+            "torus",
+            Box::new(Torus::new(TORUS_MAJOR, TORUS_MINOR, Side::Outside).unwrap()),
+        ),
+    ];
+    let points: Vec<Vector3<f64>> = (0..500)
+        .map(|_| random_point(&mut rng, Vector3::new(120.0, 120.0, 30.0)))
+        .collect();
+    let bounds: Vec<f64> = (0..points.len())
+        .map(|_| rng.random_range(-1.0..10.0))
+        .collect();
+    for (name, shape) in &shapes {
+        let mut batch = vec![None; points.len()];
+        shape.closest_normals(&points, &bounds, &mut batch);
+        let mut answered = 0;
+        for ((x, bound), answer) in points.iter().zip(&bounds).zip(&batch) {
+            assert_eq!(*answer, shape.closest_normal(x, *bound), "{name} at {x:?}");
+            answered += usize::from(answer.is_some());
+        }
+        // Both kinds of answer are compared: some points within the bound,
+        // some culled.
+        assert!(
+            answered > 0 && answered < points.len(),
+            "{name}: {answered} of {} answered",
+            points.len()
+        );
+    }
+}

@@ -78,6 +78,25 @@ pub trait RigidSurface: Send + Sync {
             .map(|point| SurfaceNormal::from(&point))
     }
 
+    /// [`RigidSurface::closest_normal`] of every point `points[k]` with
+    /// `max_distances[k]`, into `out[k]` (the three slices of one length),
+    /// with the same answers bit for bit. One call per batch of a contact
+    /// loop: behind a `dyn RigidSurface` the default loop is compiled for
+    /// the concrete shape, so the batch costs one dynamic call, not one per
+    /// point, and the shape's query is inlined into a tight loop.
+    #[inline]
+    fn closest_normals(
+        &self,
+        points: &[Vector3<f64>],
+        max_distances: &[f64],
+        out: &mut [Option<SurfaceNormal>],
+    ) {
+        debug_assert!(points.len() == max_distances.len() && points.len() == out.len());
+        for ((x, max_distance), answer) in points.iter().zip(max_distances).zip(out) {
+            *answer = self.closest_normal(x, *max_distance);
+        }
+    }
+
     /// A lower bound `c ≤ d(x)` \[mm\] on the signed distance at `x`, for a
     /// broad phase (`docs/contact.md`, "Explicit path"): a surface that
     /// answers a finite value promises that its distance is 1-Lipschitz,

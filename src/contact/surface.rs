@@ -369,6 +369,16 @@ impl<S: RigidSurface + ?Sized> RigidSurface for &S {
     }
 
     #[inline]
+    fn closest_normals(
+        &self,
+        points: &[Vector3<f64>],
+        max_distances: &[f64],
+        out: &mut [Option<SurfaceNormal>],
+    ) {
+        (**self).closest_normals(points, max_distances, out);
+    }
+
+    #[inline]
     fn clearance(&self, x: &Vector3<f64>) -> f64 {
         (**self).clearance(x)
     }
@@ -385,6 +395,16 @@ impl<S: RigidSurface + ?Sized> RigidSurface for Box<S> {
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
         (**self).closest_normal(x, max_distance)
+    }
+
+    #[inline]
+    fn closest_normals(
+        &self,
+        points: &[Vector3<f64>],
+        max_distances: &[f64],
+        out: &mut [Option<SurfaceNormal>],
+    ) {
+        (**self).closest_normals(points, max_distances, out);
     }
 
     #[inline]

@@ -20,6 +20,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use arrayvec::ArrayVec;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -28,12 +29,21 @@ use super::term::{
 };
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
-    PenaltyContact, PenaltyState, couple_tool_translation, max_curvature, normal_dashpot,
+    PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState,
+    couple_tool_translation, max_curvature, penalty_lanes_one_by_one,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
 
-/// Nodes per task of the parallel node loops.
+/// Nodes per task of the parallel node loops (a multiple of
+/// [`PAIR_LANES`]).
 const NODE_CHUNK: usize = 256;
+
+/// Nodes per batch of the explicit pairs' state: the lanes of the penalty
+/// kernel on AVX2 (`docs/contact.md`, "Explicit path: the pairs in lanes").
+const PAIR_LANES: usize = 4;
+
+/// Batches per task of the explicit node loop.
+const CHUNK_BATCHES: usize = NODE_CHUNK / PAIR_LANES;
 
 /// Distance beyond the offset within which a node is checked exactly
 /// against the tool at every Newton evaluation [mm]; farther nodes are
@@ -147,15 +157,15 @@ pub struct ToolContact {
     options: ContactOptions,
     implicit: Vec<ImplicitContactState>,
     responses: Vec<ImplicitResponse>,
-    explicit: Vec<PenaltyState>,
     springs: Vec<PenaltyContact>,
-    /// Per node: the normal dashpot `c = ζ 2 √(k_N m)` [N·s/mm].
-    dashpots: Vec<f64>,
-    /// Per node: energy dissipated by the normal dashpot [N·mm] and its
-    /// force on the node at the last increment [N] (the dissipation is the
-    /// trapezoidal work `−½ (F_{n−1} + F_n)·Δy`, the rule the solver's
-    /// balance follows).
-    damped: Vec<(f64, Vector3<f64>)>,
+    /// The explicit pairs' settings and state, [`PAIR_LANES`] nodes per
+    /// batch in node order (the last batch padded with copies of the last
+    /// node, never written back to the outputs): the penalty springs, the
+    /// normal dashpots `c = ζ 2 √(k_N m)` [N·s/mm], and per node the
+    /// energy dissipated by the dashpot [N·mm] and its force at the last
+    /// increment \[N\] (the dissipation is the trapezoidal work
+    /// `−½ (F_{n−1} + F_n)·Δy`, the rule the solver's balance follows).
+    pairs: Vec<PenaltyBatch<PAIR_LANES>>,
     /// Per node: the explicit broad phase's bound.
     clearances: Vec<Clearance>,
     /// Whether the explicit path uses the broad phase (on by default; off
@@ -192,7 +202,6 @@ impl ToolContact {
     ) -> Self {
         let n = nodes.len();
         let implicit = reference.iter().map(ImplicitContactState::new).collect();
-        let explicit = reference.iter().map(PenaltyState::new).collect();
         Self {
             name: name.into(),
             surface,
@@ -201,10 +210,8 @@ impl ToolContact {
             model_nodes,
             implicit,
             responses: vec![ImplicitResponse::default_open(); n],
-            explicit,
             springs: Vec::new(),
-            dashpots: Vec::new(),
-            damped: vec![(0.0, Vector3::zeros()); n],
+            pairs: Vec::new(),
             clearances: vec![Clearance::UNKNOWN; n],
             broad_phase: true,
             partials: vec![0.0; n.div_ceil(NODE_CHUNK)],
@@ -487,8 +494,10 @@ impl Term for ToolContact {
         masses: &Masses,
         time_step: f64,
     ) -> Result<(), TermFailure> {
-        let mut springs = Vec::with_capacity(self.nodes.len());
-        for i in 0..self.nodes.len() {
+        let n = self.nodes.len();
+        let mut springs = Vec::with_capacity(n);
+        let mut dashpots = Vec::with_capacity(n);
+        for i in 0..n {
             let m = masses.node[self.nodes[i]];
             let spring = PenaltyContact::from_stable_step(
                 m,
@@ -500,20 +509,30 @@ impl Term for ToolContact {
             .map_err(|e| self.failure(i, e.to_string()))?;
             let critical = 2.0 * (spring.normal_stiffness() * m).sqrt();
             springs.push(spring);
-            self.dashpots.push(self.options.explicit_damping * critical);
+            dashpots.push(self.options.explicit_damping * critical);
         }
-        self.springs = springs;
-        self.explicit = (0..self.nodes.len())
-            .map(|i| PenaltyState::new(&self.relative(i, state.u)))
+        self.pairs = (0..n.div_ceil(PAIR_LANES))
+            .map(|b| {
+                let node = |w: usize| (b * PAIR_LANES + w).min(n - 1);
+                PenaltyBatch::new(
+                    &std::array::from_fn(|w| springs[node(w)]),
+                    &std::array::from_fn(|w| dashpots[node(w)]),
+                    &std::array::from_fn(|w| PenaltyState::new(&self.relative(node(w), state.u))),
+                )
+            })
             .collect();
+        self.springs = springs;
         self.clearances.fill(Clearance::UNKNOWN);
         Ok(())
     }
 
     /// Per node: the broad phase (a node certainly beyond the cull
     /// distance is open without a query), else the first-order query
-    /// ([`RigidSurface::closest_normal`]) and the penalty kernel; the
-    /// normal dashpot; the force on the tool's dof reduced in chunk order.
+    /// ([`RigidSurface::closest_normals`], one call per chunk); the
+    /// penalty kernel and the normal dashpot on [`PAIR_LANES`] nodes at a
+    /// time ([`crate::contact::kernel::penalty_lanes`]), skipped for the
+    /// batches whose nodes are all culled and released; the force on the
+    /// tool's dof reduced in node order per chunk.
     fn explicit_forces(&mut self, state: &State, out: &mut [f64]) -> Result<(), TermFailure> {
         let u = state.u;
         let n = self.nodes.len();
@@ -522,88 +541,82 @@ impl Term for ToolContact {
         let surface = &*self.surface;
         let direction = self.direction;
         let broad_phase = self.broad_phase;
-        let (nodes, reference, offsets, springs, dashpots) = (
-            &self.nodes,
-            &self.reference,
-            &self.offsets,
-            &self.springs,
-            &self.dashpots,
-        );
+        let (nodes, reference, offsets) = (&self.nodes, &self.reference, &self.offsets);
         let dt = state.time_step;
         let q = u[3 * self.model_nodes + self.extra];
         node_out
             .par_chunks_mut(4 * NODE_CHUNK)
-            .zip(self.explicit.par_chunks_mut(NODE_CHUNK))
+            .zip(self.pairs.par_chunks_mut(CHUNK_BATCHES))
             .zip(self.outputs.par_chunks_mut(NODE_CHUNK))
             .zip(self.clearances.par_chunks_mut(NODE_CHUNK))
-            .zip(self.damped.par_chunks_mut(NODE_CHUNK))
             .zip(self.partials.par_iter_mut())
             .enumerate()
-            .for_each(
-                |(chunk, (((((f, states), outputs), clearances), damped), partial))| {
-                    let mut sum = 0.0;
-                    for (j, ((((fi, s), o), clearance), dissipated)) in f
-                        .chunks_exact_mut(4)
-                        .zip(states.iter_mut())
-                        .zip(outputs.iter_mut())
-                        .zip(clearances.iter_mut())
-                        .zip(damped.iter_mut())
-                        .enumerate()
-                    {
-                        let i = chunk * NODE_CHUNK + j;
-                        let node = nodes[i];
-                        let y = reference[i]
-                            + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
-                            - q * direction;
-                        let cull = offsets[i] + EXPLICIT_CULL_MARGIN;
-                        let point: Option<SurfaceNormal> = if broad_phase && clearance.far(&y) {
-                            None
-                        } else {
-                            let point = surface.closest_normal(&y, cull);
-                            if broad_phase {
-                                let bound = match &point {
-                                    Some(p) => p.distance,
-                                    None => surface.clearance(&y),
-                                };
-                                *clearance = Clearance::at(&y, bound, cull);
-                            }
-                            point
+            .for_each(|(chunk, ((((f, pairs), outputs), clearances), partial))| {
+                let first = chunk * NODE_CHUNK;
+                // Phase 1: relative positions; the broad phase picks the
+                // nodes to query (the lists are filled, never cleared: no
+                // work for the nodes it proves far).
+                let mut inputs = [PenaltyInput::<PAIR_LANES>::default(); CHUNK_BATCHES];
+                let mut queried = ArrayVec::<usize, NODE_CHUNK>::new();
+                let mut points = ArrayVec::<Vector3<f64>, NODE_CHUNK>::new();
+                let mut culls = ArrayVec::<f64, NODE_CHUNK>::new();
+                for (j, clearance) in clearances.iter().enumerate() {
+                    let i = first + j;
+                    let node = nodes[i];
+                    let y = reference[i]
+                        + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
+                        - q * direction;
+                    let input = &mut inputs[j / PAIR_LANES];
+                    for c in 0..3 {
+                        input.position[c][j % PAIR_LANES] = y[c];
+                    }
+                    if !(broad_phase && clearance.far(&y)) {
+                        queried.push(j);
+                        points.push(y);
+                        culls.push(offsets[i] + EXPLICIT_CULL_MARGIN);
+                    }
+                }
+                // Phase 2: one batch query of the tool; the bounds; the
+                // answers into the kernel's input (culled: +∞, no normal).
+                let mut answers: ArrayVec<Option<SurfaceNormal>, NODE_CHUNK> =
+                    points.iter().map(|_| None).collect();
+                surface.closest_normals(&points, &culls, &mut answers);
+                for (((j, y), cull), answer) in
+                    queried.iter().zip(&points).zip(&culls).zip(&answers)
+                {
+                    if broad_phase {
+                        let bound = match answer {
+                            Some(p) => p.distance,
+                            None => surface.clearance(y),
                         };
-                        if point.is_none()
-                            && s.status == ContactStatus::Open
-                            && s.spring == Vector3::zeros()
-                        {
-                            s.previous_position = y;
-                            fi.fill(0.0);
-                            o.status = 0;
-                            o.normal_force = 0.0;
-                            o.friction_force = 0.0;
-                            continue;
-                        }
-                        let motion = y - s.previous_position;
-                        match springs[i].update_trusted(s, &y, point.as_ref()) {
-                            Ok(r) => {
-                                // Normal dashpot on the approach velocity while in
-                                // contact, never pulling the node onto the tool.
-                                let residual = r.residual
-                                    - normal_dashpot(dashpots[i], &r, &motion, dt, dissipated);
-                                fi[..3].copy_from_slice(residual.as_slice());
-                                fi[3] = 0.0;
-                                sum -= direction.dot(&residual);
-                                o.status = r.status.code();
-                                o.normal_force = r.normal_force;
-                                o.friction_force = r.tangential_force.norm();
-                                o.gap = r.gap;
-                                o.slip = s.slip_length;
-                            }
-                            Err(_) => {
-                                first_failure.fetch_min(i, Ordering::Relaxed);
-                            }
+                        clearances[*j] = Clearance::at(y, bound, *cull);
+                    }
+                    if let Some(p) = answer {
+                        let input = &mut inputs[j / PAIR_LANES];
+                        input.distance[j % PAIR_LANES] = p.distance;
+                        for c in 0..3 {
+                            input.normal[c][j % PAIR_LANES] = p.normal[c];
                         }
                     }
-                    *partial = sum;
-                },
-            );
+                }
+                // Phase 3: the kernel on the batches with a pair to update
+                // (a pair culled and released stays so, its previous
+                // position moved on); forces and outputs in node order, the
+                // force on the tool summed in node order.
+                let kernel = KernelChunk {
+                    pairs,
+                    inputs: &inputs,
+                    forces: f,
+                    outputs,
+                    direction,
+                    time_step: dt,
+                };
+                let (failure, sum) = kernel.run();
+                if let Some(j) = failure {
+                    first_failure.fetch_min(first + j, Ordering::Relaxed);
+                }
+                *partial = sum;
+            });
         if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
             return Err(self.failure(i, "the contact kernel rejected the state".into()));
         }
@@ -637,9 +650,15 @@ impl Term for ToolContact {
             let o = &self.outputs[i];
             let penetration = if o.gap < 0.0 { -o.gap } else { 0.0 };
             let curvature = if penetration > 0.0 || o.friction_force > 0.0 {
-                let y = &self.explicit[i].previous_position;
+                let batch = &self.pairs[i / PAIR_LANES];
+                let w = i % PAIR_LANES;
+                let y = Vector3::new(
+                    batch.previous_position[0][w],
+                    batch.previous_position[1][w],
+                    batch.previous_position[2][w],
+                );
                 self.surface
-                    .closest(y, self.offsets[i] + EXPLICIT_CULL_MARGIN)
+                    .closest(&y, self.offsets[i] + EXPLICIT_CULL_MARGIN)
                     .map_or(0.0, |p| max_curvature(&p.hessian))
             } else {
                 0.0
@@ -700,17 +719,136 @@ impl Term for ToolContact {
                 ..Default::default()
             });
         }
-        let (contact, dissipated) = self
-            .explicit
-            .iter()
-            .zip(&self.damped)
-            .fold((0.0, 0.0), |(e, d), (s, (damped, _))| {
-                (e + s.stored_energy(), d + s.dissipated + damped)
-            });
+        // Node by node in node order, as the one-pair state sums them.
+        let (contact, dissipated) = (0..self.nodes.len()).fold((0.0, 0.0), |(e, d), i| {
+            let (batch, w) = (&self.pairs[i / PAIR_LANES], i % PAIR_LANES);
+            (
+                e + (batch.normal_energy[w] + batch.tangential_energy[w]),
+                d + batch.dissipated[w] + batch.damped_energy[w],
+            )
+        });
         Ok(TermEnergy {
             contact,
             dissipated,
             ..Default::default()
+        })
+    }
+}
+
+/// The batches of one node chunk for the explicit penalty kernel: the
+/// pairs' state and the kernel's input, and where the nodes' forces and
+/// outputs go.
+struct KernelChunk<'a> {
+    pairs: &'a mut [PenaltyBatch<PAIR_LANES>],
+    inputs: &'a [PenaltyInput<PAIR_LANES>],
+    forces: &'a mut [f64],
+    outputs: &'a mut [NodeContact],
+    direction: Vector3<f64>,
+    time_step: f64,
+}
+
+impl KernelChunk<'_> {
+    /// The kernel on the batches with a pair to update, four lanes at once
+    /// where the CPU has AVX2, else one at a time (the same bits either
+    /// way): the lowest chunk-local node index of a pair the kernel
+    /// rejected, and the force on the tool's dof `−Σ d·r` in node order.
+    fn run(self) -> (Option<usize>, f64) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            return <pulp::x86::V3 as pulp::Simd>::vectorize(
+                simd,
+                Avx2Kernel { simd, chunk: self },
+            );
+        }
+        self.batches(penalty_lanes_one_by_one)
+    }
+
+    /// `kernel` on every batch with a pair that is not culled and released
+    /// (the others only move their previous position on), then each
+    /// node's force and outputs.
+    #[inline(always)]
+    fn batches(
+        self,
+        mut kernel: impl FnMut(
+            &mut PenaltyBatch<PAIR_LANES>,
+            &PenaltyInput<PAIR_LANES>,
+            &mut PenaltyOutput<PAIR_LANES>,
+            f64,
+        ) -> u32,
+    ) -> (Option<usize>, f64) {
+        let mut first_failure = None;
+        let mut sum = 0.0;
+        let mut result = PenaltyOutput::<PAIR_LANES>::default();
+        for (b, (((batch, input), forces), outputs)) in self
+            .pairs
+            .iter_mut()
+            .zip(self.inputs)
+            .zip(self.forces.chunks_mut(4 * PAIR_LANES))
+            .zip(self.outputs.chunks_mut(PAIR_LANES))
+            .enumerate()
+        {
+            let mut active = 0_u32;
+            for w in 0..outputs.len() {
+                if !(input.distance[w] == f64::INFINITY && batch.released(w)) {
+                    active |= 1 << w;
+                }
+            }
+            if active == 0 {
+                batch.previous_position = input.position;
+            } else {
+                let failed = kernel(batch, input, &mut result, self.time_step) & active;
+                if failed != 0 && first_failure.is_none() {
+                    first_failure = Some(b * PAIR_LANES + failed.trailing_zeros() as usize);
+                }
+            }
+            for (w, (fi, o)) in forces
+                .chunks_exact_mut(4)
+                .zip(outputs.iter_mut())
+                .enumerate()
+            {
+                if active & (1 << w) == 0 {
+                    fi.fill(0.0);
+                    o.status = 0;
+                    o.normal_force = 0.0;
+                    o.friction_force = 0.0;
+                    continue;
+                }
+                let residual = Vector3::new(
+                    result.residual[0][w],
+                    result.residual[1][w],
+                    result.residual[2][w],
+                );
+                fi[..3].copy_from_slice(residual.as_slice());
+                fi[3] = 0.0;
+                sum -= self.direction.dot(&residual);
+                o.status = batch.status[w] as u8;
+                o.normal_force = result.normal_force[w];
+                o.friction_force = result.friction_force[w];
+                o.gap = result.gap[w];
+                o.slip = batch.slip_length[w];
+            }
+        }
+        (first_failure, sum)
+    }
+}
+
+/// [`KernelChunk::batches`] on four AVX2 lanes, as a `pulp` operation: the
+/// kernel is inlined into pulp's function compiled for x86-64-v3.
+#[cfg(target_arch = "x86_64")]
+struct Avx2Kernel<'a> {
+    simd: pulp::x86::V3,
+    chunk: KernelChunk<'a>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl pulp::WithSimd for Avx2Kernel<'_> {
+    type Output = (Option<usize>, f64);
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> (Option<usize>, f64) {
+        let ctx = crate::material::lanes::x86::F64x4::new(self.simd, [0.0; PAIR_LANES]);
+        self.chunk.batches(|batch, input, output, time_step| {
+            crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step)
         })
     }
 }

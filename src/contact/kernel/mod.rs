@@ -13,7 +13,7 @@
 //!   solver;
 //! - [`explicit`]: penalty normal contact and a regularised Coulomb law
 //!   (elastic–plastic tangential spring) with energy bookkeeping, for the
-//!   central-difference solver.
+//!   central-difference solver; [`lanes`] runs it on four pairs at once.
 //!
 //! Sign convention: the contact force on the node is `f_c = t_N n − t_T`
 //! (`t_N ≥ 0` the normal force, `t_T` the friction force vector, which
@@ -28,6 +28,7 @@
 
 pub mod explicit;
 pub mod implicit;
+pub mod lanes;
 
 pub use explicit::{
     PenaltyContact, PenaltyResponse, PenaltyState, max_curvature, normal_dashpot,
@@ -36,6 +37,9 @@ pub use explicit::{
 pub use implicit::{
     AugmentationNorms, AugmentationReport, AugmentedLagrangian, ImplicitContactState,
     ImplicitResponse,
+};
+pub use lanes::{
+    PenaltyBatch, PenaltyInput, PenaltyOutput, penalty_lanes, penalty_lanes_one_by_one,
 };
 
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
