@@ -16,7 +16,7 @@
 
 use nalgebra::Vector3;
 
-use super::{ContactStatus, PenaltyContact, PenaltyState};
+use super::{PenaltyContact, PenaltyState};
 use crate::material::lanes::Real;
 
 /// The settings and the state of `W` node–tool pairs of the explicit
@@ -171,20 +171,6 @@ impl<const W: usize> PenaltyBatch<W> {
         self.damped_energy[w] = one.damped_energy[0];
     }
 
-    /// Lane `w`'s state as a [`PenaltyState`].
-    pub fn state(&self, w: usize) -> PenaltyState {
-        let vector = |a: &[[f64; W]; 3]| Vector3::new(a[0][w], a[1][w], a[2][w]);
-        PenaltyState {
-            spring: vector(&self.spring),
-            previous_position: vector(&self.previous_position),
-            status: status_of(self.status[w]),
-            normal_energy: self.normal_energy[w],
-            tangential_energy: self.tangential_energy[w],
-            dissipated: self.dissipated[w],
-            slip_length: self.slip_length[w],
-        }
-    }
-
     /// `true` when lane `w` is open with its spring released: the pair
     /// the contact loops settle without the kernel while the tool culls it.
     #[inline(always)]
@@ -218,18 +204,6 @@ impl<const W: usize> PenaltyOutput<W> {
         self.normal_force[w] = one.normal_force[0];
         self.friction_force[w] = one.friction_force[0];
         self.gap[w] = one.gap[0];
-    }
-}
-
-/// The status of a code (0 open, 1 stick, 2 slip).
-#[inline(always)]
-pub fn status_of(code: f64) -> ContactStatus {
-    if code == 0.0 {
-        ContactStatus::Open
-    } else if code == 1.0 {
-        ContactStatus::Stick
-    } else {
-        ContactStatus::Slip
     }
 }
 
@@ -436,7 +410,7 @@ mod tests {
 
     use super::*;
     use crate::contact::SurfaceNormal;
-    use crate::contact::kernel::normal_dashpot;
+    use crate::contact::kernel::{ContactStatus, normal_dashpot};
 
     /// A random pair: a state that has stuck, slipped or opened, a tool
     /// answer that is closed, open or culled, and a dashpot that is on or
