@@ -27,13 +27,16 @@
 use std::hint::black_box;
 use std::sync::Arc;
 
-use criterion::measurement::WallTime;
-use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use ncform::contact::{Placed, Placement, PlateWithHole, RigidSurface, Side, Sphere};
 use ncform::model::{ContactOptions, Masses, State, Term, ToolContact};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
+
+#[path = "common/threads.rs"]
+mod threads;
+use threads::on_one_and_two_threads;
 
 /// Nodes per side of the ply.
 const SIDE: usize = 85;
@@ -119,35 +122,6 @@ fn two_states(
             v
         })
         .collect()
-}
-
-/// Benchmarks `increment` on one and on two threads as
-/// `<threads>_threads<suffix>`, each iteration at the next of two states
-/// (`states`, visited in turn) with the step `time_step`.
-fn on_one_and_two_threads(
-    group: &mut BenchmarkGroup<'_, WallTime>,
-    suffix: &str,
-    states: &[Vec<f64>],
-    time_step: f64,
-    mut increment: impl FnMut(&State) + Send,
-) {
-    for threads in [1, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("thread pool");
-        let mut k = 0;
-        group.bench_function(format!("{threads}_threads{suffix}"), |b| {
-            b.iter(|| {
-                k ^= 1;
-                let state = State {
-                    time_step,
-                    ..State::at(&states[k])
-                };
-                pool.install(|| increment(&state));
-            });
-        });
-    }
 }
 
 fn node_cycles(criterion: &mut Criterion) {
