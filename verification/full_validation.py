@@ -1,0 +1,252 @@
+#!/usr/bin/env python3
+"""The paper's forming findings at paper size (docs/validation.md): runs the
+six shipped forming cases as they are and prints the figures that
+docs/validation.md sets beside the paper's findings. Long (some 15 to 30
+minutes on two cores): run by `bash verification/run.sh --full`, not in CI.
+
+Checks (each a rule of the benches or a sign the paper reports, never a
+fitted value):
+
+* `complete <case>`: the run reached its full depth.
+* `quasi-static <case>`: kinetic energy at most 5 % of the internal energy
+  from 10 % of the stroke on, and the energy balance error at most 1 % of
+  the external work (the explicit path's rules, docs/explicit.md).
+* `pole strains <case>` (single-ply hemispheres) and `centre strains <case>`
+  (tetrahedra): E22 and E_perp positive, as area-weighted means over the
+  elements whose reference centroid lies within 25 mm of the blank's
+  centre, at full depth: the paper's Figs. 9 and 11 (its simulation; the
+  tetrahedron's experiment does not show them).
+* `mirror <case>` (tetrahedron [0°] and [90°]): the outer contour at full
+  depth mirror-symmetric about the punch's mirror plane x = 0 within 1 mm
+  (largest distance of a contour node from its mirror node's image); the
+  [45°] ply has no mirror symmetry with this punch (docs/forming.md).
+
+Reported, not checked (the paper gives no number to compare with): the
+draw-in and zone shear at every output depth, the deformation modes' areas,
+the share of mixed-mode 2 in each zone, and the [0°/90°] plies' contours
+against the single [0°] ply's (turned by 90° for the 90° ply), node by node.
+
+Usage: full_validation.py --ncform PATH [--keep DIR] [--only CASE ...]
+  (with --keep, runs whose summary.json exists in DIR are reused)
+"""
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import traceback
+
+import meshio
+import numpy as np
+
+import full_hemisphere
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+CASES = os.path.join(REPO, "cases")
+
+# The shipped forming cases, in the order they are run.
+CASE_NAMES = ["hemisphere-0", "hemisphere-45", "hemisphere-0-90",
+              "tetrahedron-0", "tetrahedron-45", "tetrahedron-90"]
+
+# Radius [mm] of the disc about the blank's centre (reference
+# coordinates) over which the pole/centre strains are averaged.
+CENTRE_RADIUS = 25.0
+
+# The explicit path's quasi-static rules (docs/explicit.md).
+KINETIC_LIMIT = 0.05
+BALANCE_LIMIT = 0.01
+
+# Mirror symmetry limit of the outer contour [mm] (the hemisphere issue's).
+MIRROR_LIMIT = 1.0
+
+MODE_NAMES = ["near reference", "mixed-mode 1", "mixed-mode 2", "I11 >= 1, I8 > 1",
+              "I11 >= 1, I8 <= 1"]
+
+# The PASS/FAIL protocol and the CSV reader of the hemisphere suite.
+results = full_hemisphere.results
+check = full_hemisphere.check
+read_csv = full_hemisphere.read_csv
+
+
+def run_case(ncform, name, work):
+    """Runs the shipped case file itself (not a copy, as full_hemisphere.py
+    does for its edited cases), so that the outputs name cases/<name>.toml;
+    returns the output folder and its summary (None when the run wrote
+    none)."""
+    out = os.path.join(work, name)
+    if os.path.exists(os.path.join(out, "summary.json")):
+        print(f"# reusing {out}", flush=True)
+    else:
+        shutil.rmtree(out, ignore_errors=True)
+        print(f"# ncform run cases/{name}.toml", flush=True)
+        run = subprocess.run([ncform, "run", os.path.join(CASES, f"{name}.toml"),
+                              "--out", out, "--quiet"], capture_output=True, text=True)
+        if run.returncode != 0:
+            print(run.stderr[-2000:])
+    if not os.path.exists(os.path.join(out, "summary.json")):
+        return out, None
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    print(f"# {name}: {status(summary)}, wall {summary['wall_seconds']:.1f} s", flush=True)
+    return out, summary
+
+
+def status(summary):
+    """The run's status word ("complete", "incomplete", ...)."""
+    st = summary["status"]
+    return st.get("status", str(st)) if isinstance(st, dict) else str(st)
+
+
+def contours(out):
+    """{ply number: (reference xy, [xy at each output state])}."""
+    _, data = read_csv(os.path.join(out, "outer_contour.csv"))
+    plies = {}
+    for p in np.unique(data[:, 0]):
+        d = data[data[:, 0] == p]
+        states = [d[:, 4 + 2 * k:6 + 2 * k] for k in range((d.shape[1] - 4) // 2)]
+        plies[int(p)] = (d[:, 2:4], states)
+    return plies
+
+
+def node_distances(ref_a, fin_a, ref_b, fin_b, map_reference, map_final):
+    """Distances between contour a's nodes and the nodes of contour b at
+    `map_reference(r)`, b's final positions mapped by `map_final`."""
+    index = {tuple(np.round(r, 6)): k for k, r in enumerate(ref_b)}
+    d = []
+    for k, r in enumerate(ref_a):
+        j = index.get(tuple(np.round(map_reference(r), 6)))
+        if j is not None:
+            d.append(float(np.linalg.norm(fin_a[k] - map_final(fin_b[j]))))
+    return np.array(d)
+
+
+def centre_strains(vtu):
+    """Area-weighted mean E22 and E_perp over the elements whose reference
+    centroid lies within CENTRE_RADIUS of the blank's centre."""
+    m = meshio.read(vtu)
+    ref = m.points - m.point_data["displacement"]
+    tri = m.cells_dict["triangle"]
+    c = ref[tri].mean(axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(ref[tri[:, 1]] - ref[tri[:, 0]],
+                                         ref[tri[:, 2]] - ref[tri[:, 0]]), axis=1)
+    inside = np.hypot(c[:, 0], c[:, 1]) < CENTRE_RADIUS
+    w = area[inside]
+    mean = lambda f: float((m.cell_data_dict[f]["triangle"][inside] * w).sum() / w.sum())
+    return mean("E22"), mean("E_perp"), int(inside.sum())
+
+
+def last_ply_vtus(out):
+    """{ply name: its last output state's VTU}."""
+    names = sorted(x for x in os.listdir(os.path.join(out, "vtu"))
+                   if x.endswith(".vtu") and not x.startswith("tool-") and "-dic_" not in x)
+    last = {}
+    for n in names:
+        last[n.rsplit("_", 1)[0]] = os.path.join(out, "vtu", n)
+    return last
+
+
+def report(name, out, s):
+    explicit = s["explicit"]
+    forming = s["forming"]
+    final = forming["states"][-1]
+    check(f"complete {name}", s["complete"], f"{status(s)}, {final['stroke']:.1f} mm")
+    kinetic, balance = explicit["max_kinetic_ratio"], explicit["max_relative_balance_error"]
+    check(f"quasi-static {name}", kinetic <= KINETIC_LIMIT and balance <= BALANCE_LIMIT,
+          f"KE/IE at most {100 * kinetic:.2f} % (limit 5 %), balance error "
+          f"{balance:.1e} of the external work (limit 1e-2); {explicit['increments']} increments")
+    tool_names = [t.split(" (")[0] for t in s.get("tools", [])]
+    zones = forming["zones"]
+    for st in forming["states"]:
+        forces = ", ".join(f"{n} {t['force']:.3f} N" for n, t in zip(tool_names, st["tools"]))
+        lifts = ", ".join(f"{x:.3f}" for x in st["lifts"])
+        print(f"# {name} at {st['stroke']:.1f} mm: {forces}; lift {lifts} mm")
+        for ply, d in enumerate(st["draw_in"]):
+            pts = [p[0] for p in forming["draw_in_points"][ply]]
+            print(f"#   draw-in ply {ply + 1}: " + ", ".join(f"{p} {x:.1f}" for p, x in zip(pts, d)))
+        print("#   zones: " + "; ".join(
+            f"{z[0]} ({z[1]}) γ {v['shear_angle_mean']:.1f}° (std {v['shear_angle_std']:.1f}), "
+            f"E22 {v['e22_mean']:+.3f}, mixed-mode 2 share {v['mode_fractions'][2]:.2f}"
+            for z, v in zip(zones, st["zones"])))
+    for m in forming.get("deformation_modes", []):
+        if abs(m["stroke"] - final["stroke"]) < 1e-9:
+            print(f"# {name} deformation modes of {m['ply']} at {m['stroke']:.1f} mm [mm²]: " +
+                  ", ".join(f"{n} {a:.0f}" for n, a in zip(MODE_NAMES, m["areas"])))
+    strains = {}
+    for ply, vtu in last_ply_vtus(out).items():
+        e22, e_perp, n = centre_strains(vtu)
+        strains[ply] = (e22, e_perp)
+        print(f"# {name} {ply}: E22 {e22:+.3f}, E_perp {e_perp:+.3f} within {CENTRE_RADIUS:.0f} mm "
+              f"of the centre ({n} elements)")
+    if name in ("hemisphere-0", "hemisphere-45") or name.startswith("tetrahedron"):
+        e22, e_perp = next(iter(strains.values()))
+        what = "pole" if name.startswith("hemisphere") else "centre"
+        check(f"{what} strains {name}", e22 > 0 and e_perp > 0,
+              f"E22 {e22:+.3f}, E_perp {e_perp:+.3f} within {CENTRE_RADIUS:.0f} mm of the "
+              f"{what} at {final['stroke']:.1f} mm (the paper: positive)")
+    if name in ("tetrahedron-0", "tetrahedron-90"):
+        ref, states = contours(out)[1]
+        d = node_distances(ref, states[-1], ref, states[-1],
+                           lambda r: np.array([-r[0], r[1]]),
+                           lambda x: np.array([-x[0], x[1]]))
+        check(f"mirror {name}", d.size > 0 and d.max() <= MIRROR_LIMIT,
+              f"outer contour at {final['stroke']:.1f} mm about x = 0: largest {d.max():.3f} mm, "
+              f"RMS {np.sqrt(np.mean(d * d)):.3f} mm over {d.size} nodes (limit 1 mm)")
+
+
+def stack_against_single(single_out, stack_out):
+    single = contours(single_out)[1]
+    stack = contours(stack_out)
+    for ply, turned in ((1, False), (2, True)):
+        ref, states = stack[ply]
+        if turned:
+            # The 90° ply at reference r is the [0°] ply at r turned by -90°;
+            # its final positions turned back by +90°.
+            d = node_distances(ref, states[-1], single[0], single[1][-1],
+                               lambda r: np.array([r[1], -r[0]]),
+                               lambda x: np.array([-x[1], x[0]]))
+        else:
+            d = node_distances(ref, states[-1], single[0], single[1][-1],
+                               lambda r: r, lambda x: x)
+        print(f"# hemisphere-0-90 ply {ply} against the single [0°] ply"
+              f"{' turned by 90°' if turned else ''} at full depth: RMS "
+              f"{np.sqrt(np.mean(d * d)):.2f} mm, largest {d.max():.2f} mm over {d.size} nodes")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--ncform", required=True)
+    ap.add_argument("--keep")
+    ap.add_argument("--only", nargs="*", choices=CASE_NAMES)
+    args = ap.parse_args()
+    if not args.ncform:
+        check("build", False, "no ncform binary")
+        return
+    work = args.keep or tempfile.mkdtemp(prefix="ncform-full-validation-")
+    os.makedirs(work, exist_ok=True)
+    outs = {}
+    for name in args.only or CASE_NAMES:
+        out, s = run_case(args.ncform, name, work)
+        if s is None:
+            check(f"complete {name}", False, "no summary.json")
+            continue
+        outs[name] = out
+        report(name, out, s)
+    if "hemisphere-0" in outs and "hemisphere-0-90" in outs:
+        stack_against_single(outs["hemisphere-0"], outs["hemisphere-0-90"])
+    if not args.keep:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except Exception:  # a crash is a failed check, with its traceback
+        traceback.print_exc()
+        results.append(False)
+    finally:
+        passed = sum(results)
+        print(f"CHECK-SUMMARY passed={passed} failed={len(results) - passed}")
+        sys.exit(0 if results and all(results) else 1)
