@@ -60,7 +60,8 @@ CENTRE_RADIUS = 25.0
 KINETIC_LIMIT = 0.05
 BALANCE_LIMIT = 0.01
 
-# Mirror symmetry limit of the outer contour [mm] (the hemisphere issue's).
+# Mirror symmetry limit of the outer contour [mm] (the one the hemisphere
+# bench's symmetry check uses, docs/forming.md).
 MIRROR_LIMIT = 1.0
 
 MODE_NAMES = ["near reference", "mixed-mode 1", "mixed-mode 2", "I11 >= 1, I8 > 1",
