@@ -80,7 +80,7 @@ def run_case(ncform, name, work, tag, edits=()):
         if run.returncode != 0:
             print(run.stderr[-2000:])
     summary = json.load(open(os.path.join(out, "summary.json")))
-    print(f"# {tag}: {summary['status']}, wall {summary['wall_seconds']:.1f} s", flush=True)
+    print(f"# {tag}: {status(summary)}, wall {summary['wall_seconds']:.1f} s", flush=True)
     return out, summary
 
 
@@ -89,14 +89,29 @@ def contour(out):
     return data[:, 2:4], data[:, 4:]
 
 
-def mirror_deviation(reference, final, mirror):
-    index = {tuple(np.round(r, 6)): k for k, r in enumerate(reference)}
-    worst = 0.0
-    for k, r in enumerate(reference):
-        j = index.get(tuple(np.round(mirror(r), 6)))
+def node_distances(ref_a, fin_a, ref_b, fin_b, map_reference, map_final):
+    """Distances between contour a's nodes and the nodes of contour b at
+    `map_reference(r)`, b's final positions mapped by `map_final` (nodes
+    without a counterpart are left out)."""
+    index = {tuple(np.round(r, 6)): k for k, r in enumerate(ref_b)}
+    d = []
+    for k, r in enumerate(ref_a):
+        j = index.get(tuple(np.round(map_reference(r), 6)))
         if j is not None:
-            worst = max(worst, float(np.linalg.norm(mirror(final[j]) - final[k])))
-    return worst
+            d.append(float(np.linalg.norm(fin_a[k] - map_final(fin_b[j]))))
+    return np.array(d)
+
+
+def mirror_deviation(reference, final, mirror):
+    """The largest distance of a contour node from its mirror node's image."""
+    d = node_distances(reference, final, reference, final, mirror, mirror)
+    return float(d.max()) if d.size else 0.0
+
+
+def status(summary):
+    """The run's status word ("complete", "incomplete", ...)."""
+    st = summary["status"]
+    return st.get("status", str(st)) if isinstance(st, dict) else str(st)
 
 
 def forming(out):

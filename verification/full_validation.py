@@ -67,10 +67,13 @@ MIRROR_LIMIT = 1.0
 MODE_NAMES = ["near reference", "mixed-mode 1", "mixed-mode 2", "I11 >= 1, I8 > 1",
               "I11 >= 1, I8 <= 1"]
 
-# The PASS/FAIL protocol and the CSV reader of the hemisphere suite.
+# The PASS/FAIL protocol, the CSV reader, the run's status word and the
+# node-by-node contour comparison of the hemisphere suite.
 results = full_hemisphere.results
 check = full_hemisphere.check
 read_csv = full_hemisphere.read_csv
+status = full_hemisphere.status
+node_distances = full_hemisphere.node_distances
 
 
 def run_case(ncform, name, work):
@@ -95,12 +98,6 @@ def run_case(ncform, name, work):
     return out, summary
 
 
-def status(summary):
-    """The run's status word ("complete", "incomplete", ...)."""
-    st = summary["status"]
-    return st.get("status", str(st)) if isinstance(st, dict) else str(st)
-
-
 def contours(out):
     """{ply number: (reference xy, [xy at each output state])}."""
     _, data = read_csv(os.path.join(out, "outer_contour.csv"))
@@ -110,18 +107,6 @@ def contours(out):
         states = [d[:, 4 + 2 * k:6 + 2 * k] for k in range((d.shape[1] - 4) // 2)]
         plies[int(p)] = (d[:, 2:4], states)
     return plies
-
-
-def node_distances(ref_a, fin_a, ref_b, fin_b, map_reference, map_final):
-    """Distances between contour a's nodes and the nodes of contour b at
-    `map_reference(r)`, b's final positions mapped by `map_final`."""
-    index = {tuple(np.round(r, 6)): k for k, r in enumerate(ref_b)}
-    d = []
-    for k, r in enumerate(ref_a):
-        j = index.get(tuple(np.round(map_reference(r), 6)))
-        if j is not None:
-            d.append(float(np.linalg.norm(fin_a[k] - map_final(fin_b[j]))))
-    return np.array(d)
 
 
 def centre_strains(vtu):
