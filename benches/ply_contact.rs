@@ -123,7 +123,7 @@ fn node_cycles(criterion: &mut Criterion) {
         surface("ply-90", n, upper),
         PlyContactOptions {
             friction: 0.336,
-            explicit_stiffness: 0.1,
+            explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
             skin: SKIN,
         },

@@ -313,6 +313,34 @@ fn bad_forming_cases_name_key_value_and_expectation() {
             ),
             vec!["contact.tangential_penalty_scale", "0", "a ratio > 0"],
         ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[output]",
+                    "[contact]\nexplicit_pressure_stiffness = -2.0\n\n[output]",
+                )],
+            ),
+            vec![
+                "contact.explicit_pressure_stiffness",
+                "-2",
+                "a stiffness per unit area",
+            ],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[output]",
+                    "[contact]\nexplicit_stiffness = 0.1\nexplicit_pressure_stiffness = 2.0\n\n[output]",
+                )],
+            ),
+            vec![
+                "contact.explicit_pressure_stiffness",
+                "either contact.explicit_stiffness",
+                "not both",
+            ],
+        ),
     ];
     for (text, parts) in cases {
         let msg = case_error(&text);

@@ -23,7 +23,7 @@ use super::explicit::{
 };
 use crate::config::{ConfigError, TomlChecker, parse_toml};
 use crate::material::MaterialSpec;
-use crate::model::LoadAmplitude;
+use crate::model::{ExplicitPenalty, LoadAmplitude};
 use crate::solver::NewtonParameters;
 
 /// Standard gravity [mm/s²].
@@ -199,6 +199,7 @@ struct ContactRaw {
     gap_tolerance: Option<Spanned<f64>>,
     multiplier_tolerance: Option<Spanned<f64>>,
     explicit_stiffness: Option<Spanned<f64>>,
+    explicit_pressure_stiffness: Option<Spanned<f64>>,
     explicit_damping: Option<Spanned<f64>>,
 }
 
@@ -510,11 +511,25 @@ pub struct ContactSettings {
     /// augmentation.
     pub multiplier_tolerance: f64,
     /// Explicit penalty as a fraction of the central-difference limit
-    /// `4m/Δt²` of each node.
+    /// `4m/Δt²` of each node (used unless `explicit_pressure_stiffness`
+    /// is given).
     pub explicit_stiffness: f64,
+    /// Explicit penalty per unit area \[N/mm³\], instead of the fraction.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub explicit_pressure_stiffness: Option<f64>,
     /// Explicit normal contact damping, a fraction of the critical damping
     /// of each node's penalty spring.
     pub explicit_damping: f64,
+}
+
+impl ContactSettings {
+    /// How the explicit path chooses each node's penalty.
+    pub fn explicit_penalty(&self) -> ExplicitPenalty {
+        match self.explicit_pressure_stiffness {
+            Some(k_p) => ExplicitPenalty::PerArea(k_p),
+            None => ExplicitPenalty::StableFraction(self.explicit_stiffness),
+        }
+    }
 }
 
 impl Default for ContactSettings {
@@ -527,6 +542,7 @@ impl Default for ContactSettings {
             gap_tolerance: None,
             multiplier_tolerance: 1e-3,
             explicit_stiffness: 0.1,
+            explicit_pressure_stiffness: None,
             explicit_damping: 0.2,
         }
     }
@@ -1058,13 +1074,32 @@ impl FormingCase {
                     "a fraction in [0, 1] of the critical damping",
                 )?;
             }
-            if let Some(v) = &c.explicit_stiffness {
-                contact.explicit_stiffness = check.range(
-                    v,
-                    "contact.explicit_stiffness",
-                    |x| x > 0.0 && x <= 1.0,
-                    "a fraction in (0, 1] of the stability limit",
-                )?;
+            match (&c.explicit_stiffness, &c.explicit_pressure_stiffness) {
+                (Some(_), Some(k)) => {
+                    return Err(check.invalid(
+                        check.line_of(k),
+                        "contact.explicit_pressure_stiffness",
+                        crate::config::readable_number(*k.get_ref()),
+                        "either contact.explicit_stiffness (a fraction of the stability limit) or contact.explicit_pressure_stiffness (per unit area), not both",
+                    ));
+                }
+                (Some(v), None) => {
+                    contact.explicit_stiffness = check.range(
+                        v,
+                        "contact.explicit_stiffness",
+                        |x| x > 0.0 && x <= 1.0,
+                        "a fraction in (0, 1] of the stability limit",
+                    )?;
+                }
+                (None, Some(k)) => {
+                    contact.explicit_pressure_stiffness = Some(check.range(
+                        k,
+                        "contact.explicit_pressure_stiffness",
+                        |x| x > 0.0 && x <= 1.0e12,
+                        "a stiffness per unit area in (0, 1e12] N/mm³ (MPa per mm of penetration)",
+                    )?);
+                }
+                (None, None) => {}
             }
         }
 

@@ -665,7 +665,7 @@ impl FormingCase {
                             .unwrap_or(0.01 * ply_spec.thickness),
                         multiplier_tolerance: self.contact.multiplier_tolerance,
                         tangential_penalty_scale: self.contact.tangential_penalty_scale,
-                        explicit_stiffness: self.contact.explicit_stiffness,
+                        explicit_stiffness: self.contact.explicit_penalty(),
                         explicit_damping: self.contact.explicit_damping,
                     },
                 ));
@@ -701,7 +701,7 @@ impl FormingCase {
                 surface(b),
                 PlyContactOptions {
                     friction: spec.friction,
-                    explicit_stiffness: self.contact.explicit_stiffness,
+                    explicit_stiffness: self.contact.explicit_penalty(),
                     explicit_damping: self.contact.explicit_damping,
                     skin: spec.skin,
                 },

@@ -30,7 +30,7 @@ use super::term::{
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
     PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState,
-    couple_tool_translation, max_curvature, penalty_lanes_one_by_one,
+    couple_tool_translation, max_curvature, penalty_lanes_one_by_one, stable_penalty_stiffness,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
 
@@ -134,12 +134,58 @@ pub struct ContactOptions {
     /// Ratio `ε_T/ε_N` of the tangential (stick) penalty to the normal
     /// penalty of each node (docs/contact.md, "The automatic penalty").
     pub tangential_penalty_scale: f64,
-    /// Explicit penalty as a fraction of each node's central-difference
-    /// limit `4 m / Δt²`.
-    pub explicit_stiffness: f64,
+    /// How each node's explicit penalty stiffness is chosen.
+    pub explicit_stiffness: ExplicitPenalty,
     /// Explicit normal contact damping as a fraction of the critical
     /// damping `2 √(k_N m)` of each node's penalty spring.
     pub explicit_damping: f64,
+}
+
+/// How the explicit path chooses each node's penalty stiffness
+/// `k_N = k_T` (docs/contact.md, "Explicit path: penalty with regularised
+/// friction").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ExplicitPenalty {
+    /// A fraction `c ∈ (0, 1]` of the node's central-difference limit,
+    /// `k = c · 4 m / Δt²` with `Δt` the stable step of the rest of the
+    /// model: the contact lowers the step by at most `√(1 + c)`. Per unit
+    /// area this grows as the cells shrink (`∝ 1/Δt²`).
+    StableFraction(f64),
+    /// A stiffness per unit area `k_p > 0` \[N/mm³ = MPa/mm\]:
+    /// `k = k_p · A_n` with `A_n` the node's tributary area, the same
+    /// pressure per penetration on every mesh. The stable-step estimate
+    /// counts it like any spring.
+    PerArea(f64),
+}
+
+impl ExplicitPenalty {
+    /// The default: `StableFraction(0.1)`.
+    pub const DEFAULT: Self = Self::StableFraction(0.1);
+
+    /// The stiffness \[N/mm\] of a node of mass `mass` \[t\] and tributary
+    /// area `area` \[mm²\] at the stable step `time_step` \[s\] of the rest
+    /// of the model.
+    ///
+    /// # Errors
+    /// A fraction outside (0, 1], a per-area stiffness or an area that is
+    /// not positive, or a stiffness that is not finite.
+    pub fn stiffness(&self, mass: f64, area: f64, time_step: f64) -> Result<f64, String> {
+        match *self {
+            Self::StableFraction(c) => {
+                stable_penalty_stiffness(mass, time_step, c).map_err(|e| e.to_string())
+            }
+            Self::PerArea(k_p) => {
+                let k = k_p * area;
+                if k_p > 0.0 && area > 0.0 && k.is_finite() {
+                    Ok(k)
+                } else {
+                    Err(format!(
+                        "penalty {k_p} N/mm³ on a nodal area {area} mm²: expected both positive"
+                    ))
+                }
+            }
+        }
+    }
 }
 
 /// The contact of a set of ply nodes with one rigid tool.
@@ -499,14 +545,14 @@ impl Term for ToolContact {
         let mut dashpots = Vec::with_capacity(n);
         for i in 0..n {
             let m = masses.node[self.nodes[i]];
-            let spring = PenaltyContact::from_stable_step(
-                m,
-                time_step,
-                self.options.explicit_stiffness,
-                self.options.friction,
-                self.offsets[i],
-            )
-            .map_err(|e| self.failure(i, e.to_string()))?;
+            let stiffness = self
+                .options
+                .explicit_stiffness
+                .stiffness(m, self.areas[i], time_step)
+                .map_err(|e| self.failure(i, e))?;
+            let spring =
+                PenaltyContact::new(stiffness, stiffness, self.options.friction, self.offsets[i])
+                    .map_err(|e| self.failure(i, e.to_string()))?;
             let critical = 2.0 * (spring.normal_stiffness() * m).sqrt();
             springs.push(spring);
             dashpots.push(self.options.explicit_damping * critical);

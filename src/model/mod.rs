@@ -14,7 +14,7 @@ pub mod ply_contact;
 pub mod term;
 
 pub use bending::{BendingSetupError, BendingTerm};
-pub use contact::{ContactOptions, NodeContact, ToolContact};
+pub use contact::{ContactOptions, ExplicitPenalty, NodeContact, ToolContact};
 pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
 pub use ply_contact::{PlyContact, PlyContactOptions, PlyNodeContact, PlySurface};

@@ -22,6 +22,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
+use super::contact::ExplicitPenalty;
 use super::term::{FrequencyBound, Masses, State, Stencils, Term, TermEnergy, TermFailure};
 use crate::contact::SurfaceNormal;
 use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
@@ -66,9 +67,11 @@ pub struct PlySurface {
 pub struct PlyContactOptions {
     /// Coulomb coefficient `μ ≥ 0`.
     pub friction: f64,
-    /// Penalty as a fraction of the central-difference limit of each
-    /// node–surface spring (shared by the two passes, so each takes half).
-    pub explicit_stiffness: f64,
+    /// Penalty of each node–surface spring, shared by the two passes (so
+    /// each takes half): a fraction of the central-difference limit of
+    /// the node and the lightest node of the other ply, or a stiffness per
+    /// unit area of the node's own ply.
+    pub explicit_stiffness: ExplicitPenalty,
     /// Normal damping as a fraction of each spring's critical damping.
     pub explicit_damping: f64,
     /// Skin of the Verlet candidate lists \[mm\].
@@ -137,6 +140,8 @@ pub struct PlyContact {
     anchors: [Vec<Vector3<f64>>; 2],
     /// Scatter buffer: ply 0's nodes, then ply 1's.
     node_forces: Vec<Vector3<f64>>,
+    /// Tributary (reference) area of each node per ply \[mm²\].
+    areas: [Vec<f64>; 2],
 }
 
 impl PlyContact {
@@ -185,11 +190,12 @@ impl PlyContact {
         }
         let checks = [
             ("friction", options.friction, options.friction >= 0.0),
-            (
-                "explicit_stiffness",
-                options.explicit_stiffness,
-                options.explicit_stiffness > 0.0 && options.explicit_stiffness <= 1.0,
-            ),
+            match options.explicit_stiffness {
+                ExplicitPenalty::StableFraction(c) => {
+                    ("explicit_stiffness", c, c > 0.0 && c <= 1.0)
+                }
+                ExplicitPenalty::PerArea(k) => ("explicit_pressure_stiffness", k, k > 0.0),
+            },
             (
                 "explicit_damping",
                 options.explicit_damping,
@@ -205,8 +211,10 @@ impl PlyContact {
         let offset = 0.5 * (first.thickness + second.thickness);
         let positions = [first.reference.clone(), second.reference.clone()];
         let total = first.nodes.len() + second.nodes.len();
+        let areas = [nodal_areas(&first), nodal_areas(&second)];
         Ok(Self {
             name,
+            areas,
             offset,
             passes: Vec::new(),
             previous: positions.clone(),
@@ -365,7 +373,7 @@ impl Term for PlyContact {
                 .fold(f64::INFINITY, f64::min);
             let mut springs = Vec::with_capacity(self.plies[k].nodes.len());
             let mut dashpots = Vec::with_capacity(self.plies[k].nodes.len());
-            for &n in &self.plies[k].nodes {
+            for (i, &n) in self.plies[k].nodes.iter().enumerate() {
                 let m = masses.node[n];
                 if !(m > 0.0 && m.is_finite() && lightest.is_finite()) {
                     return Err(self.failure(
@@ -374,8 +382,18 @@ impl Term for PlyContact {
                     ));
                 }
                 let effective = 1.0 / (1.0 / m + 1.0 / lightest);
-                let k_n = 0.5 * self.options.explicit_stiffness * 4.0 * effective
-                    / (time_step * time_step);
+                let k_n = match self.options.explicit_stiffness {
+                    ExplicitPenalty::StableFraction(c) => {
+                        0.5 * c * 4.0 * effective / (time_step * time_step)
+                    }
+                    ExplicitPenalty::PerArea(k_p) => 0.5 * k_p * self.areas[k][i],
+                };
+                if !(k_n > 0.0 && k_n.is_finite()) {
+                    return Err(self.failure(
+                        n,
+                        format!("penalty {k_n} N/mm: expected a positive stiffness (a node without area?)"),
+                    ));
+                }
                 let spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
                     .map_err(|e| self.failure(n, e.to_string()))?;
                 dashpots.push(self.options.explicit_damping * 2.0 * (k_n * effective).sqrt());
@@ -674,6 +692,20 @@ fn failure(term: &str, node: usize, reason: String) -> TermFailure {
         index: node,
         reason,
     }
+}
+
+/// A third of the reference area of every triangle at each of its nodes
+/// \[mm²\].
+fn nodal_areas(ply: &PlySurface) -> Vec<f64> {
+    let mut areas = vec![0.0; ply.nodes.len()];
+    for t in &ply.triangles {
+        let x = |k: usize| ply.reference[t[k]];
+        let third = (x(1) - x(0)).cross(&(x(2) - x(0))).norm() / 6.0;
+        for &n in t {
+            areas[n] += third;
+        }
+    }
+    areas
 }
 
 /// The triangle and weights of a node's last hit, if any.
