@@ -357,18 +357,6 @@ fn generator_key(e: MeshError) -> MeshError {
     }
 }
 
-/// `Σ A0/3` per node of a mesh [mm²].
-fn nodal_areas(mesh: &Mesh) -> Vec<f64> {
-    let mut area = vec![0.0; mesh.nodes.len()];
-    for (e, t) in mesh.triangles.iter().enumerate() {
-        let a = mesh.triangle_area(e) / 3.0;
-        for &n in t {
-            area[n] += a;
-        }
-    }
-    area
-}
-
 impl FormingCase {
     /// Builds the model: meshes, terms, tool dofs, loads and conditions.
     ///
@@ -434,7 +422,7 @@ impl FormingCase {
             }
             plies.push(BuiltPly {
                 name: spec.name.clone(),
-                nodal_area: nodal_areas(&mesh),
+                nodal_area: mesh.nodal_areas(),
                 mesh,
                 node_offset: offset,
                 membrane,

@@ -29,6 +29,7 @@ use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal
 use crate::contact::ply_pair::{
     CandidateLists, closest_candidate, side_of, signed_distance, triangle_boxes,
 };
+use crate::mesh::nodal_areas;
 
 /// Nodes per task of the parallel node loops.
 const NODE_CHUNK: usize = 256;
@@ -211,7 +212,10 @@ impl PlyContact {
         let offset = 0.5 * (first.thickness + second.thickness);
         let positions = [first.reference.clone(), second.reference.clone()];
         let total = first.nodes.len() + second.nodes.len();
-        let areas = [nodal_areas(&first), nodal_areas(&second)];
+        let areas = [
+            nodal_areas(&first.reference, &first.triangles),
+            nodal_areas(&second.reference, &second.triangles),
+        ];
         Ok(Self {
             name,
             areas,
@@ -382,18 +386,13 @@ impl Term for PlyContact {
                     ));
                 }
                 let effective = 1.0 / (1.0 / m + 1.0 / lightest);
-                let k_n = match self.options.explicit_stiffness {
-                    ExplicitPenalty::StableFraction(c) => {
-                        0.5 * c * 4.0 * effective / (time_step * time_step)
-                    }
-                    ExplicitPenalty::PerArea(k_p) => 0.5 * k_p * self.areas[k][i],
-                };
-                if !(k_n > 0.0 && k_n.is_finite()) {
-                    return Err(self.failure(
-                        n,
-                        format!("penalty {k_n} N/mm: expected a positive stiffness (a node without area?)"),
-                    ));
-                }
+                // The two passes share the penalty: each takes half.
+                let k_n = 0.5
+                    * self
+                        .options
+                        .explicit_stiffness
+                        .stiffness(effective, self.areas[k][i], time_step)
+                        .map_err(|e| self.failure(n, e))?;
                 let spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
                     .map_err(|e| self.failure(n, e.to_string()))?;
                 dashpots.push(self.options.explicit_damping * 2.0 * (k_n * effective).sqrt());
@@ -692,20 +691,6 @@ fn failure(term: &str, node: usize, reason: String) -> TermFailure {
         index: node,
         reason,
     }
-}
-
-/// A third of the reference area of every triangle at each of its nodes
-/// \[mm²\].
-fn nodal_areas(ply: &PlySurface) -> Vec<f64> {
-    let mut areas = vec![0.0; ply.nodes.len()];
-    for t in &ply.triangles {
-        let x = |k: usize| ply.reference[t[k]];
-        let third = (x(1) - x(0)).cross(&(x(2) - x(0))).norm() / 6.0;
-        for &n in t {
-            areas[n] += third;
-        }
-    }
-    areas
 }
 
 /// The triangle and weights of a node's last hit, if any.
