@@ -26,7 +26,15 @@ draw-in and zone shear at every output depth, the deformation modes' areas,
 the share of mixed-mode 2 in each zone, and the [0°/90°] plies' contours
 against the single [0°] ply's (turned by 90° for the 90° ply), node by node.
 
-Usage: full_validation.py --ncform PATH [--keep DIR] [--only CASE ...]
+With `--nudged K [K ...]` it also runs copies of the [0°] and [0°/90°]
+hemispheres whose stable step is re-estimated every K increments instead
+of every 100 (a perturbation of the step sequence by about 10^-4, the
+same bench), and prints the zone shear of the stack's 0° ply against the
+single ply's for each sequence, with the spread over the sequences: how
+much of the paper's Fig. 10a comparison a single run can tell
+(docs/validation.md). Reported, not checked.
+
+Usage: full_validation.py --ncform PATH [--keep DIR] [--only CASE ...] [--nudged K ...]
   (with --keep, runs whose summary.json exists in DIR are reused)
 """
 
@@ -201,11 +209,64 @@ def stack_against_single(single_out, stack_out):
               f"{np.sqrt(np.mean(d * d)):.2f} mm, largest {d.max():.2f} mm over {d.size} nodes")
 
 
+def zone_means(summary):
+    """[[zone A, B, C mean shear angle] at each output state] [deg] and the
+    output depths [mm]."""
+    states = summary["forming"]["states"]
+    return ([[z["shear_angle_mean"] for z in st["zones"]] for st in states],
+            [st["stroke"] for st in states])
+
+
+def nudged_zones(ncform, work, intervals, shipped):
+    """The stack's 0° ply against the single [0°] ply, zone by zone, and the
+    single ply's mirror symmetry at full depth, for the shipped step
+    sequence (`shipped`: the two runs' output folders, or None) and for
+    copies re-estimating the step every K increments."""
+    runs = {}
+    if shipped is not None:
+        runs[100] = shipped
+    for k in intervals:
+        edit = [("kinetic_energy_warning = 0.05",
+                 f"kinetic_energy_warning = 0.05\ntime_step_update_interval = {k}")]
+        runs[k] = tuple(
+            full_hemisphere.run_case(ncform, f"{name}.toml", work, f"{name}-k{k}", edit)[0]
+            for name in ("hemisphere-0", "hemisphere-0-90"))
+    differences = {}
+    for k, (single_out, stack_out) in sorted(runs.items()):
+        single, stack = (json.load(open(os.path.join(o, "summary.json")))
+                         for o in (single_out, stack_out))
+        (a, depths), (b, _) = zone_means(single), zone_means(stack)
+        differences[k] = np.array(b) - np.array(a)
+        ref, states = contours(single_out)[1]
+        about_x = full_hemisphere.mirror_deviation(ref, states[-1],
+                                                   lambda p: np.array([p[0], -p[1]]))
+        about_y = full_hemisphere.mirror_deviation(ref, states[-1],
+                                                   lambda p: np.array([-p[0], p[1]]))
+        print(f"# step re-estimated every {k} increments: "
+              f"{single['explicit']['increments']} / {stack['explicit']['increments']} increments "
+              f"(single / stack); the single ply's contour at {depths[-1]:.0f} mm mirror-symmetric "
+              f"about the x / y axis to {about_x:.2f} / {about_y:.2f} mm (largest distance)")
+        for depth, za, zb, d in zip(depths, a, b, differences[k]):
+            print(f"#   {depth:.0f} mm: zone A / B / C stack 0° ply "
+                  + " / ".join(f"{x:.1f}" for x in zb) + "°, single "
+                  + " / ".join(f"{x:.1f}" for x in za) + "°, stack − single "
+                  + " / ".join(f"{x:+.1f}" for x in d) + "°")
+    if len(differences) > 1:
+        stacked = np.array(list(differences.values()))
+        for s, depth in enumerate(depths):
+            lo, hi = stacked[:, s, :].min(axis=0), stacked[:, s, :].max(axis=0)
+            print(f"# stack − single at {depth:.0f} mm over {len(differences)} step sequences: "
+                  + "; ".join(f"{z} {l:+.1f} … {h:+.1f}°" for z, l, h in zip("ABC", lo, hi)))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--ncform", required=True)
     ap.add_argument("--keep")
     ap.add_argument("--only", nargs="*", choices=CASE_NAMES)
+    ap.add_argument("--nudged", nargs="*", type=int, default=[],
+                    help="also run the [0°] and [0°/90°] hemispheres with the step "
+                         "re-estimated every K increments (docs/validation.md)")
     args = ap.parse_args()
     if not args.ncform:
         check("build", False, "no ncform binary")
@@ -222,6 +283,11 @@ def main():
         report(name, out, s)
     if "hemisphere-0" in outs and "hemisphere-0-90" in outs:
         stack_against_single(outs["hemisphere-0"], outs["hemisphere-0-90"])
+    if args.nudged:
+        shipped = None
+        if "hemisphere-0" in outs and "hemisphere-0-90" in outs:
+            shipped = (outs["hemisphere-0"], outs["hemisphere-0-90"])
+        nudged_zones(args.ncform, work, args.nudged, shipped)
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
 
