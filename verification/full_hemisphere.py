@@ -115,6 +115,13 @@ def mirror_deviation(reference, final, mirror):
     return float(d.max()) if d.size else 0.0
 
 
+def axis_mirror_deviations(reference, final):
+    """The largest distances of a contour node from its mirror node's image
+    about the x axis and about the y axis [mm]."""
+    return (mirror_deviation(reference, final, lambda p: np.array([p[0], -p[1]])),
+            mirror_deviation(reference, final, lambda p: np.array([-p[0], p[1]])))
+
+
 def status(summary):
     """The run's status word ("complete", "incomplete", ...)."""
     st = summary["status"]
@@ -142,8 +149,7 @@ def main():
     e0, _ = run_case(args.ncform, "hemisphere-0.toml", work, "explicit-0")
     e45, _ = run_case(args.ncform, "hemisphere-45.toml", work, "explicit-45")
     ref, fin = contour(e0)
-    dx = mirror_deviation(ref, fin[:, -2:], lambda p: np.array([p[0], -p[1]]))
-    dy = mirror_deviation(ref, fin[:, -2:], lambda p: np.array([-p[0], p[1]]))
+    dx, dy = axis_mirror_deviations(ref, fin[:, -2:])
     check("symmetry [0]", max(dx, dy) < 1.0,
           f"[0°] final contour about the x axis {dx:.3f} mm, about the y axis {dy:.3f} mm (limit 1)")
     ref, fin = contour(e45)
