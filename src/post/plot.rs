@@ -169,7 +169,8 @@ fn draw_panel<DB: DrawingBackend>(
 
 /// Draws closed outlines in the plane (e.g. a ply's outer contour at several
 /// depths) into a square PNG of `size × size` pixels at equal scale in x and
-/// y, each series closed back to its first point.
+/// y, each series closed back to its first point, with the legend in the
+/// middle of the picture (which outer contours leave free).
 ///
 /// # Errors
 /// A message naming the file when drawing or writing fails.
@@ -242,7 +243,9 @@ pub fn write_outlines_png(
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
-        .position(SeriesLabelPosition::UpperRight)
+        // Outer contours enclose the blank's centre, so the middle of the
+        // picture is free of lines; a corner is where the blank's corners are.
+        .position(SeriesLabelPosition::MiddleMiddle)
         .draw()
         .map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))?;
