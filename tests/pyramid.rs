@@ -527,3 +527,86 @@ fn tessellations_lie_on_the_surfaces_facing_the_ply() {
         assert!(checked > 0);
     }
 }
+
+/// The in-plane distance from `p` to the convex polygon `q` (zero inside),
+/// by its edges as segments: independent of the plate's code.
+fn polygon_distance_brute(q: &[Vector2<f64>], p: &Vector2<f64>) -> f64 {
+    let m = q.len();
+    let inside = (0..m).all(|i| {
+        let (a, b) = (q[i], q[(i + 1) % m]);
+        let e = b - a;
+        e.x * (p.y - a.y) - e.y * (p.x - a.x) >= 0.0
+    });
+    if inside {
+        return 0.0;
+    }
+    (0..m)
+        .map(|i| {
+            let (a, b) = (q[i], q[(i + 1) % m]);
+            let e = b - a;
+            let t = ((p - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+            (p - (a + e * t)).norm()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Requirement: the plate's face-zone shortcut (a point farther in-plane
+/// than the opening's farthest vertex plus both radii is answered
+/// without the polygon) gives the face's answer exactly where the face
+/// holds and leaves every other point to the full query: on rays through
+/// the opening's corners (where the shortcut's circle touches the grown
+/// opening) and sides, at in-plane distances from the grown opening's
+/// edge of −1 mm to +1 mm (down to 10⁻⁷ mm), for heights over the fillet
+/// and the face. Where the independent in-plane distance `u` to the grown
+/// opening is positive the distance is `z` to the last bit and the normal
+/// `e_z`; where it is negative the fillet's distance `|(u, z + r_f)| −
+/// r_f`, which exceeds `z` (to its round-off, `8 ε` of the coordinates).
+/// `closest`, `closest_normal` and `clearance` agree to the bit.
+#[test]
+fn plate_face_shortcut_answers_the_face_only_on_it() {
+    let (plate, polygon, corner) = die();
+    let rf = plate.fillet_radius();
+    let grown = corner + rf;
+    let m = polygon.len();
+    let mut checked = [0usize; 2];
+    for i in 0..m {
+        let (a, b) = (polygon[i], polygon[(i + 1) % m]);
+        let t = (b - a).normalize();
+        let side_normal = Vector2::new(t.y, -t.x);
+        // Outwards from the corner along its position vector (the
+        // direction in which the shortcut's circle meets the grown
+        // opening) and from the side's midpoint along its normal.
+        let bisector = a.normalize();
+        for (base, dir) in [(a, bisector), ((a + b) / 2.0, side_normal)] {
+            for offset in [-1.0, -1e-3, -1e-7, 1e-7, 1e-3, 1.0, 30.0] {
+                for z in [-4.9, -1.0, 0.15, 3.0] {
+                    let q = base + dir * (grown + offset);
+                    let x = Vector3::new(q.x, q.y, z);
+                    let u = polygon_distance_brute(&polygon, &q) - grown;
+                    let answer = plate.closest_normal(&x, f64::INFINITY).unwrap();
+                    let full = plate.closest(&x, f64::INFINITY).unwrap();
+                    assert_eq!(answer.distance.to_bits(), full.distance.to_bits());
+                    assert_eq!(answer.normal, full.normal);
+                    assert_eq!(plate.clearance(&x).to_bits(), answer.distance.to_bits());
+                    let roundoff = 8.0 * EPS * SIZE;
+                    if u > roundoff {
+                        assert_eq!(answer.distance.to_bits(), z.to_bits(), "face at {x:?}");
+                        assert_eq!(answer.normal, Vector3::z(), "face normal at {x:?}");
+                        assert_eq!(max_abs(&full.hessian), 0.0);
+                        checked[0] += 1;
+                    } else if u < -roundoff {
+                        let fillet = Vector2::new(u, z + rf).norm() - rf;
+                        assert!(
+                            (answer.distance - fillet).abs() <= roundoff,
+                            "fillet at {x:?}: {} against {fillet}",
+                            answer.distance
+                        );
+                        assert!(answer.distance > z - roundoff);
+                        checked[1] += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked[0] > 40 && checked[1] > 40, "{checked:?}");
+}

@@ -437,6 +437,65 @@ fn analytic_shapes_match_closed_forms() {
     }
 }
 
+/// Requirement: the plate's face-zone shortcut (a point at `ρ² ≥ (R_o +
+/// r_f)²`, grown by a relative 10⁻⁹, is answered without `ρ`) answers
+/// the face exactly where the face holds and leaves the fillet to the full
+/// query: at in-plane distances from the fillet's outer edge of −1 mm to
+/// +30 mm (down to 10⁻⁷ mm on either side), at 12 azimuths and heights
+/// 0–3 mm over the face's plane (the free side, where contact is),
+/// against the closed form of the nearest feature ([`plate_reference`],
+/// to `64 ε` of the size, where it decides); on the face side
+/// the distance is `z` to the last bit and the normal `e_z`, on the fillet
+/// side the fillet's `|(u, z + r_f)| − r_f` and (from 10⁻⁶ mm into it) a
+/// tilted normal; `closest`, `closest_normal` and `clearance` agree to the
+/// bit.
+#[test]
+fn plate_face_shortcut_answers_the_face_only_on_it() {
+    let plate = PlateWithHole::new(OPENING, FILLET).unwrap();
+    let size = 100.0;
+    let mut checked = [0usize; 3];
+    for k in 0..12 {
+        let phi = TAU * k as f64 / 12.0 + 0.1;
+        for offset in [-1.0, -1e-3, -1e-7, 1e-7, 1e-3, 1.0, 30.0] {
+            for z in [0.0, 0.15, 1.0, 3.0] {
+                let rho = OPENING + FILLET + offset;
+                let x = Vector3::new(rho * phi.cos(), rho * phi.sin(), z);
+                let answer = plate.closest_normal(&x, f64::INFINITY).unwrap();
+                let full = plate.closest(&x, f64::INFINITY).unwrap();
+                assert_eq!(answer.distance.to_bits(), full.distance.to_bits());
+                assert_eq!(answer.normal, full.normal);
+                assert_eq!(plate.clearance(&x).to_bits(), answer.distance.to_bits());
+                // Within 10⁻³ mm of the face–fillet junction the reference
+                // declines (two features with different normals at once).
+                if let Some(expected) = plate_reference(&x) {
+                    check_closed_form(&plate, &x, &expected, size, "plate face shortcut");
+                    checked[2] += 1;
+                }
+                let in_plane = Vector2::new(x.x, x.y).norm() - OPENING - FILLET;
+                if in_plane > 64.0 * EPS * size {
+                    assert_eq!(answer.distance.to_bits(), z.to_bits(), "face at {x:?}");
+                    assert_eq!(answer.normal, Vector3::z(), "face normal at {x:?}");
+                    assert_eq!(max_abs(&full.hessian), 0.0);
+                    checked[0] += 1;
+                } else {
+                    let fillet = Vector2::new(in_plane, z + FILLET).norm() - FILLET;
+                    assert!(
+                        (answer.distance - fillet).abs() <= 64.0 * EPS * size,
+                        "fillet at {x:?}: {} against {fillet}",
+                        answer.distance
+                    );
+                    assert!(answer.normal.x != 0.0 || answer.normal.y != 0.0 || offset > -1e-6);
+                    checked[1] += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        checked[0] >= 12 * 4 * 4 && checked[1] >= 12 * 3 * 4 && checked[2] >= 12 * 5 * 4,
+        "{checked:?}"
+    );
+}
+
 /// The four zones of the plate with hole in the meridian plane, each
 /// sampled at least `MARGIN` from its borders and `ELL` from the fillet
 /// centre and the axis: `(name, ρ, z)`.

@@ -923,17 +923,67 @@ impl PlateWithHole {
         }
         Some((rho, meridian))
     }
+
+    /// `true` where `x` is certainly in the face zone (`ρ ≥ R_o + r_f`,
+    /// `z > −r_f`), decided on `ρ²` without the square root: the flange
+    /// of a blank, most of the nodes pressed against a die or a
+    /// blankholder. The margin of `FACE_ZONE_MARGIN` on `(R_o + r_f)²`
+    /// keeps the decision on the face side of the rounding of `ρ`, so
+    /// that a point it accepts is one [`Self::meridian`] puts on the face.
+    #[inline]
+    fn certainly_face(&self, x: &Vector3<f64>) -> bool {
+        let rf = self.fillet_radius;
+        let edge = self.opening_radius + rf;
+        x.z > -rf && x.x * x.x + x.y * x.y >= edge * edge * (1.0 + FACE_ZONE_MARGIN)
+    }
+}
+
+/// Relative margin on a squared radius within which the face-zone
+/// shortcut of the plates ([`PlateWithHole`],
+/// [`super::PlateWithPolygonHole`]) leaves the decision to the full
+/// query: far above the rounding of a square or a square root (10⁻¹⁶),
+/// far below any length of the benches (10⁻⁹ of a radius of 85 mm is
+/// 85 pm).
+pub(crate) const FACE_ZONE_MARGIN: f64 = 1e-9;
+
+/// [`face_answer`] with the face's Hessian, zero.
+#[inline]
+pub(crate) fn face_point(x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+    face_answer(x, max_distance).map(|a| SurfacePoint {
+        distance: a.distance,
+        normal: a.normal,
+        hessian: Matrix3::zeros(),
+    })
+}
+
+/// The face zone's answer of a plate: the distance `z` and the normal
+/// `e_z` (the full query gives `d_ρ e_ρ + d_z e_z` with `d_ρ = 0`,
+/// `d_z = 1`: the same up to the sign of zero components).
+#[inline]
+pub(crate) fn face_answer(x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+    (x.z <= max_distance).then(|| SurfaceNormal {
+        distance: x.z,
+        normal: Vector3::z(),
+    })
 }
 
 impl RigidSurface for PlateWithHole {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
+        if all_finite(x) && self.certainly_face(x) {
+            return face_point(x, max_distance);
+        }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
         Some(revolve(x, rho, &meridian))
     }
 
+    /// In the face zone ([`Self::certainly_face`]) without the square
+    /// root and the radial unit vector.
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
+        if all_finite(x) && self.certainly_face(x) {
+            return face_answer(x, max_distance);
+        }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
         Some(revolve_distance_normal(x, rho, &meridian))
     }
@@ -945,6 +995,9 @@ impl RigidSurface for PlateWithHole {
     fn clearance(&self, x: &Vector3<f64>) -> f64 {
         if !all_finite(x) {
             return f64::NEG_INFINITY;
+        }
+        if self.certainly_face(x) {
+            return x.z;
         }
         self.meridian(radial(x), x.z).distance
     }
