@@ -942,8 +942,8 @@ impl PlateWithHole {
 /// shortcut of the plates ([`PlateWithHole`],
 /// [`super::PlateWithPolygonHole`]) leaves the decision to the full
 /// query: far above the rounding of a square or a square root (10⁻¹⁶),
-/// far below any length of the benches (10⁻⁹ of a radius of 85 mm is
-/// 85 pm).
+/// far below any length of the benches (10⁻⁹ on the square is
+/// 5·10⁻¹⁰ on the radius, 43 pm on a radius of 85 mm).
 pub(crate) const FACE_ZONE_MARGIN: f64 = 1e-9;
 
 /// [`face_answer`] with the face's Hessian, zero.
