@@ -576,8 +576,8 @@ fn plate_face_shortcut_answers_the_face_only_on_it() {
         // Outwards from the corner along its position vector (the
         // direction in which the shortcut's circle meets the grown
         // opening) and from the side's midpoint along its normal.
-        let bisector = a.normalize();
-        for (base, dir) in [(a, bisector), ((a + b) / 2.0, side_normal)] {
+        let radial = a.normalize();
+        for (base, dir) in [(a, radial), ((a + b) / 2.0, side_normal)] {
             for offset in [-1.0, -1e-3, -1e-7, 1e-7, 1e-3, 1.0, 30.0] {
                 for z in [-4.9, -1.0, 0.15, 3.0] {
                     let q = base + dir * (grown + offset);
