@@ -556,7 +556,7 @@ fn polygon_distance_brute(q: &[Vector2<f64>], p: &Vector2<f64>) -> f64 {
 /// holds and leaves every other point to the full query: on rays through
 /// the opening's corners (where the shortcut's circle touches the grown
 /// opening) and sides, at in-plane distances from the grown opening's
-/// edge of −1 mm to +1 mm (down to 10⁻⁷ mm), for heights over the fillet
+/// edge of −1 mm to +30 mm (down to 10⁻⁷ mm), for heights over the fillet
 /// and the face. Where the independent in-plane distance `u` to the grown
 /// opening is positive the distance is `z` to the last bit and the normal
 /// `e_z`; where it is negative the fillet's distance `|(u, z + r_f)| −

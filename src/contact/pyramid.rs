@@ -783,7 +783,7 @@ impl PlateWithPolygonHole {
 impl RigidSurface for PlateWithPolygonHole {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
-        if all_finite(x) && self.certainly_face(x) {
+        if self.certainly_face(x) && all_finite(x) {
             return face_point(x, max_distance);
         }
         let (distance, normal, poly, gradient, h) = self.query(x, max_distance)?;
@@ -806,7 +806,7 @@ impl RigidSurface for PlateWithPolygonHole {
 
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if all_finite(x) && self.certainly_face(x) {
+        if self.certainly_face(x) && all_finite(x) {
             return face_answer(x, max_distance);
         }
         let (distance, normal, _, _, _) = self.query(x, max_distance)?;

@@ -845,6 +845,9 @@ impl RigidSurface for Torus {
 pub struct PlateWithHole {
     opening_radius: f64,
     fillet_radius: f64,
+    /// `(R_o + r_f)²`, grown by [`FACE_ZONE_MARGIN`]: beyond it, in-plane,
+    /// a point above `z = −r_f` is certainly in the face zone.
+    face_radius_squared: f64,
 }
 
 impl PlateWithHole {
@@ -858,9 +861,11 @@ impl PlateWithHole {
     pub fn new(opening_radius: f64, fillet_radius: f64) -> Result<Self, ShapeError> {
         let opening_radius = positive_finite("plate with hole", "opening_radius", opening_radius)?;
         let fillet_radius = non_negative_finite("plate with hole", "fillet_radius", fillet_radius)?;
+        let face_radius = opening_radius + fillet_radius;
         Ok(Self {
             opening_radius,
             fillet_radius,
+            face_radius_squared: face_radius * face_radius * (1.0 + FACE_ZONE_MARGIN),
         })
     }
 
@@ -932,9 +937,7 @@ impl PlateWithHole {
     /// that a point it accepts is one [`Self::meridian`] puts on the face.
     #[inline]
     fn certainly_face(&self, x: &Vector3<f64>) -> bool {
-        let rf = self.fillet_radius;
-        let edge = self.opening_radius + rf;
-        x.z > -rf && x.x * x.x + x.y * x.y >= edge * edge * (1.0 + FACE_ZONE_MARGIN)
+        x.z > -self.fillet_radius && x.x * x.x + x.y * x.y >= self.face_radius_squared
     }
 }
 
@@ -970,7 +973,7 @@ pub(crate) fn face_answer(x: &Vector3<f64>, max_distance: f64) -> Option<Surface
 impl RigidSurface for PlateWithHole {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
-        if all_finite(x) && self.certainly_face(x) {
+        if self.certainly_face(x) && all_finite(x) {
             return face_point(x, max_distance);
         }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
@@ -981,7 +984,7 @@ impl RigidSurface for PlateWithHole {
     /// root and the radial unit vector.
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if all_finite(x) && self.certainly_face(x) {
+        if self.certainly_face(x) && all_finite(x) {
             return face_answer(x, max_distance);
         }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
