@@ -28,7 +28,7 @@ use std::f64::consts::{PI, TAU};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 use super::surface::{
-    FACE_ZONE_MARGIN, Placement, SINGULAR_FRACTION, ShapeError, Sphere, all_finite, face_answer,
+    FaceZone, Placement, SINGULAR_FRACTION, ShapeError, Sphere, all_finite, face_answer,
     face_point, non_negative_finite, positive_finite,
 };
 use super::tessellate::{Tessellation, divisions, plate_profile};
@@ -472,10 +472,10 @@ pub struct PlateWithPolygonHole {
     offsets: Vec<f64>,
     corner_radius: f64,
     fillet_radius: f64,
-    /// `(max_v |v| + ρ_o + r_f)²`, grown by [`FACE_ZONE_MARGIN`]: beyond
-    /// it, in-plane, a point is certainly in the face zone (`u ≥ 0`: the
-    /// distance to the convex `Q` is at least `|p| − max_v |v|`).
-    face_radius_squared: f64,
+    /// Beyond `max_v |v| + ρ_o + r_f`, in-plane, a point above `z = −r_f`
+    /// is certainly in the face zone (`u ≥ 0`: the distance to the convex
+    /// `Q` is at least `|p| − max_v |v|`).
+    face_zone: FaceZone,
 }
 
 /// The in-plane signed distance to a convex polygon: value, unit
@@ -558,7 +558,6 @@ impl PlateWithPolygonHole {
             }
         }
         let farthest = polygon.iter().fold(0.0_f64, |r, v| r.max(v.norm()));
-        let face_radius = farthest + corner_radius + fillet_radius;
         Ok(Self {
             vertices: polygon.to_vec(),
             tangents,
@@ -567,7 +566,7 @@ impl PlateWithPolygonHole {
             offsets,
             corner_radius,
             fillet_radius,
-            face_radius_squared: face_radius * face_radius * (1.0 + FACE_ZONE_MARGIN),
+            face_zone: FaceZone::new(farthest + corner_radius + fillet_radius, fillet_radius),
         })
     }
 
@@ -584,14 +583,6 @@ impl PlateWithPolygonHole {
     /// The fillet radius `r_f` \[mm\].
     pub fn fillet_radius(&self) -> f64 {
         self.fillet_radius
-    }
-
-    /// `true` where `x` is certainly in the face zone (`u ≥ 0`,
-    /// `z > −r_f`), decided on `|p|²` without the polygon: the flange of
-    /// a blank, most of the nodes pressed against a die or a blankholder.
-    #[inline]
-    fn certainly_face(&self, x: &Vector3<f64>) -> bool {
-        x.z > -self.fillet_radius && x.x * x.x + x.y * x.y >= self.face_radius_squared
     }
 
     /// The signed distance to `Q` at the in-plane point `p`.
@@ -783,7 +774,7 @@ impl PlateWithPolygonHole {
 impl RigidSurface for PlateWithPolygonHole {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
-        if self.certainly_face(x) && all_finite(x) {
+        if self.face_zone.contains(x) && all_finite(x) {
             return face_point(x, max_distance);
         }
         let (distance, normal, poly, gradient, h) = self.query(x, max_distance)?;
@@ -806,7 +797,7 @@ impl RigidSurface for PlateWithPolygonHole {
 
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if self.certainly_face(x) && all_finite(x) {
+        if self.face_zone.contains(x) && all_finite(x) {
             return face_answer(x, max_distance);
         }
         let (distance, normal, _, _, _) = self.query(x, max_distance)?;
@@ -820,7 +811,7 @@ impl RigidSurface for PlateWithPolygonHole {
         if !all_finite(x) {
             return f64::NEG_INFINITY;
         }
-        if self.certainly_face(x) {
+        if self.face_zone.contains(x) {
             return x.z;
         }
         let p = Vector2::new(x.x, x.y);

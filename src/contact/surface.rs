@@ -845,9 +845,9 @@ impl RigidSurface for Torus {
 pub struct PlateWithHole {
     opening_radius: f64,
     fillet_radius: f64,
-    /// `(R_o + r_f)²`, grown by [`FACE_ZONE_MARGIN`]: beyond it, in-plane,
-    /// a point above `z = −r_f` is certainly in the face zone.
-    face_radius_squared: f64,
+    /// Beyond `R_o + r_f`, in-plane, a point above `z = −r_f` is
+    /// certainly in the face zone.
+    face_zone: FaceZone,
 }
 
 impl PlateWithHole {
@@ -861,11 +861,10 @@ impl PlateWithHole {
     pub fn new(opening_radius: f64, fillet_radius: f64) -> Result<Self, ShapeError> {
         let opening_radius = positive_finite("plate with hole", "opening_radius", opening_radius)?;
         let fillet_radius = non_negative_finite("plate with hole", "fillet_radius", fillet_radius)?;
-        let face_radius = opening_radius + fillet_radius;
         Ok(Self {
             opening_radius,
             fillet_radius,
-            face_radius_squared: face_radius * face_radius * (1.0 + FACE_ZONE_MARGIN),
+            face_zone: FaceZone::new(opening_radius + fillet_radius, fillet_radius),
         })
     }
 
@@ -928,17 +927,6 @@ impl PlateWithHole {
         }
         Some((rho, meridian))
     }
-
-    /// `true` where `x` is certainly in the face zone (`ρ ≥ R_o + r_f`,
-    /// `z > −r_f`), decided on `ρ²` without the square root: the flange
-    /// of a blank, most of the nodes pressed against a die or a
-    /// blankholder. The margin of `FACE_ZONE_MARGIN` on `(R_o + r_f)²`
-    /// keeps the decision on the face side of the rounding of `ρ`, so
-    /// that a point it accepts is one [`Self::meridian`] puts on the face.
-    #[inline]
-    fn certainly_face(&self, x: &Vector3<f64>) -> bool {
-        x.z > -self.fillet_radius && x.x * x.x + x.y * x.y >= self.face_radius_squared
-    }
 }
 
 /// Relative margin on a squared radius within which the face-zone
@@ -947,7 +935,38 @@ impl PlateWithHole {
 /// query: far above the rounding of a square or a square root (10⁻¹⁶),
 /// far below any length of the benches (10⁻⁹ on the square is
 /// 5·10⁻¹⁰ on the radius, 43 pm on a radius of 85 mm).
-pub(crate) const FACE_ZONE_MARGIN: f64 = 1e-9;
+const FACE_ZONE_MARGIN: f64 = 1e-9;
+
+/// The part of a plate's face zone (the flange of a blank, most of the
+/// nodes pressed against a die or a blankholder) that is decided on the
+/// squared in-plane radius, without the opening's geometry or a square
+/// root: `z > −r_f` and `x² + y² ≥ R²(1 + FACE_ZONE_MARGIN)`, with `R` a
+/// radius beyond which every in-plane point is on the face side of the
+/// fillet. The margin keeps the decision on the face side of the rounding
+/// of `ρ`, so that a point it accepts is one the full query puts on the
+/// face.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FaceZone {
+    fillet_radius: f64,
+    radius_squared: f64,
+}
+
+impl FaceZone {
+    /// The zone beyond the in-plane radius `radius` \[mm\] of a plate with
+    /// fillet radius `fillet_radius` \[mm\].
+    pub(crate) fn new(radius: f64, fillet_radius: f64) -> Self {
+        Self {
+            fillet_radius,
+            radius_squared: radius * radius * (1.0 + FACE_ZONE_MARGIN),
+        }
+    }
+
+    /// `true` where `x` (plate frame) is certainly in the face zone.
+    #[inline]
+    pub(crate) fn contains(&self, x: &Vector3<f64>) -> bool {
+        x.z > -self.fillet_radius && x.x * x.x + x.y * x.y >= self.radius_squared
+    }
+}
 
 /// [`face_answer`] with the face's Hessian, zero.
 #[inline]
@@ -973,18 +992,18 @@ pub(crate) fn face_answer(x: &Vector3<f64>, max_distance: f64) -> Option<Surface
 impl RigidSurface for PlateWithHole {
     #[inline]
     fn closest(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfacePoint> {
-        if self.certainly_face(x) && all_finite(x) {
+        if self.face_zone.contains(x) && all_finite(x) {
             return face_point(x, max_distance);
         }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
         Some(revolve(x, rho, &meridian))
     }
 
-    /// In the face zone ([`Self::certainly_face`]) without the square
+    /// In the face zone ([`FaceZone`]) without the square
     /// root and the radial unit vector.
     #[inline]
     fn closest_normal(&self, x: &Vector3<f64>, max_distance: f64) -> Option<SurfaceNormal> {
-        if self.certainly_face(x) && all_finite(x) {
+        if self.face_zone.contains(x) && all_finite(x) {
             return face_answer(x, max_distance);
         }
         let (rho, meridian) = self.meridian_query(x, max_distance)?;
@@ -999,7 +1018,7 @@ impl RigidSurface for PlateWithHole {
         if !all_finite(x) {
             return f64::NEG_INFINITY;
         }
-        if self.certainly_face(x) {
+        if self.face_zone.contains(x) {
             return x.z;
         }
         self.meridian(radial(x), x.z).distance
