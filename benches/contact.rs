@@ -83,6 +83,7 @@ fn tool_at(
             gap_tolerance: 1e-3,
             multiplier_tolerance: 1e-3,
             tangential_penalty_scale: 1.0,
+            smoothing: Default::default(),
             explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
         },

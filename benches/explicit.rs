@@ -142,6 +142,7 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
                 gap_tolerance: 3e-3,
                 multiplier_tolerance: 1e-3,
                 tangential_penalty_scale: 1.0,
+                smoothing: Default::default(),
                 explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
                 explicit_damping: 0.2,
             },

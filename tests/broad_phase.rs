@@ -167,6 +167,7 @@ fn term(surface: Arc<dyn RigidSurface>, reference: &[Vector3<f64>]) -> ToolConta
             gap_tolerance: 1e-3,
             multiplier_tolerance: 1e-3,
             tangential_penalty_scale: 1.0,
+            smoothing: Default::default(),
             explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
         },

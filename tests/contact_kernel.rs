@@ -27,7 +27,7 @@ use rand::{RngExt, SeedableRng};
 
 use ncform::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ImplicitContactState, ImplicitResponse, PenaltyContact,
-    PenaltyResponse, PenaltyState, max_curvature, stable_penalty_stiffness,
+    PenaltyResponse, PenaltyState, Smoothing, max_curvature, stable_penalty_stiffness,
 };
 use ncform::contact::{
     ContactError, ContactStatus, RigidSurface, SurfacePoint, couple_tool_translation,
@@ -981,6 +981,512 @@ fn bad_inputs_are_errors() {
     }
     assert!(penalty.frequency_squared(0.0, 0.0, 0.0, 0.0).is_err());
     assert!(penalty.frequency_squared(1.0, -1.0, 0.0, 0.0).is_err());
+}
+
+// ---------------------------------------------------------------------------
+// Implicit kernel: the smoothed kinks (Eq. S1–S3)
+// ---------------------------------------------------------------------------
+
+/// Which rounded band a smoothed state is drawn in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Band {
+    /// Inside the normal law's band `|λ_N − ε_N g| < ε_N δ_g`.
+    Normal,
+    /// Inside the friction law's band `||t*| − μ t_N| < δ_r μ t_N` (and
+    /// the normal band, half of the time).
+    Friction,
+}
+
+/// A random active state of `random_case` with its kinks rounded so that
+/// it lies in `band`: the gap width `δ_g` is `1.2..5` times `|x|/ε_N`
+/// (`x = λ_N − ε_N g`; half of the states have `λ_N` lowered by `2x`, so
+/// that `x < 0`: the side the non-smooth law leaves open); the friction
+/// width `δ_r` is `1.2..3` times `|r − 1|` (`r = |t*|/(μ t_N)`, drawn
+/// again when that is not below 1). `None` when the draw cannot be put in
+/// the band.
+fn smoothed_case(rng: &mut StdRng, tool: &Tool, band: Band) -> Option<ImplicitCase> {
+    let target = if rng.random_bool(0.5) {
+        ContactStatus::Stick
+    } else {
+        ContactStatus::Slip
+    };
+    let mu = if band == Band::Normal && rng.random_bool(0.3) {
+        Some(0.0)
+    } else {
+        None
+    };
+    let mut case = random_case(rng, tool, target, mu);
+    let law = case.law;
+    let point = tool.query(&case.y)?;
+    let mut x =
+        case.state.normal_multiplier - law.normal_penalty() * (point.distance - law.offset());
+    if rng.random_bool(0.5) && case.state.normal_multiplier >= 2.0 * x {
+        case.state.normal_multiplier -= 2.0 * x;
+        x = -x;
+    }
+    let normal_width = if band == Band::Normal || rng.random_bool(0.5) {
+        x.abs() * rng.random_range(1.2..5.0)
+    } else {
+        0.0
+    };
+    let gap_width = normal_width / law.normal_penalty();
+    let friction_width = if band == Band::Friction {
+        let (t_n, _) = rounded(x, normal_width);
+        let w = case.state.tangential_multiplier
+            + law.tangential_penalty() * (case.y - case.state.slip_reference);
+        let trial = w - point.normal.dot(&w) * point.normal;
+        let r = trial.norm() / (law.friction() * t_n);
+        let width = (r - 1.0).abs() * rng.random_range(1.2..3.0);
+        if !(width > 0.0 && width < 1.0) {
+            return None;
+        }
+        width
+    } else {
+        0.0
+    };
+    case.law = law
+        .with_smoothing(Smoothing {
+            gap_width,
+            friction_width,
+        })
+        .expect("valid widths");
+    Some(case)
+}
+
+/// The test's own rounded bracket (Eq. S1): value and slope.
+fn rounded(x: f64, w: f64) -> (f64, f64) {
+    if x >= w {
+        (x, 1.0)
+    } else if x <= -w {
+        (0.0, 0.0)
+    } else {
+        ((x + w).powi(2) / (4.0 * w), (x + w) / (2.0 * w))
+    }
+}
+
+/// `FdScales` of a smoothed state: as `implicit_scales`, with `t_N` the
+/// rounded force, `ℓ` also at most `t_N/(ε_N s′)` (the scale over which the
+/// friction limit `μ t_N` changes) when friction acts and at most the width
+/// of the band the state is in (over which the slope runs through its
+/// range, so the rounded law's second derivative is `1/width` times the
+/// straight one's slope), and the kinks
+/// replaced by the band edges, where the second derivative jumps: the
+/// normal edges `x = ±ε_N δ_g` at `|x ∓ ε_N δ_g|/ε_N`, the friction edges
+/// `|t*| = (1 ± δ_r) μ t_N` at `||t*| − (1 ± δ_r) μ t_N| / (ε_T + 2|w|κ +
+/// (1 + δ_r) μ ε_N s′)`. The status may change inside a band (it is stick
+/// for `|t*| ≤ μ t_N`), where the law is smooth, so only the edges count.
+fn smoothed_scales(case: &ImplicitCase) -> FdScales {
+    let law = &case.law;
+    let state = &case.state;
+    let smoothing = law.smoothing();
+    let point = case.tool.query(&case.y).expect("off the centre");
+    let n = point.normal;
+    let x = state.normal_multiplier - law.normal_penalty() * (point.distance - law.offset());
+    let normal_width = law.normal_penalty() * smoothing.gap_width;
+    let (t_n, slope) = rounded(x, normal_width);
+    let w =
+        state.tangential_multiplier + law.tangential_penalty() * (case.y - state.slip_reference);
+    let trial = w - n.dot(&w) * n;
+    let rho = case.tool.radius_at(&case.y);
+    let kappa = 1.0 / rho;
+    let friction = law.friction();
+    let band = smoothing.friction_width;
+    let limit = friction * t_n;
+    let sliding = friction > 0.0 && trial.norm() > (1.0 - band) * limit;
+    let slip_scale = if sliding {
+        trial.norm() / (law.tangential_penalty() + 2.0 * w.norm() * kappa)
+    } else {
+        f64::INFINITY
+    };
+    let limit_scale = if friction > 0.0 && slope > 0.0 {
+        t_n / (law.normal_penalty() * slope)
+    } else {
+        f64::INFINITY
+    };
+    // Inside a band the slope changes by its whole range over the band's
+    // width: `δ_g` for the normal law, `2 δ_r μ t_N / G` for the friction
+    // law (`G` the gradient bound of the friction edges below).
+    let friction_gradient = law.tangential_penalty()
+        + 2.0 * w.norm() * kappa
+        + (1.0 + band) * friction * law.normal_penalty() * slope;
+    let normal_band_scale = if x.abs() < normal_width {
+        smoothing.gap_width
+    } else {
+        f64::INFINITY
+    };
+    let friction_band_scale = if friction > 0.0 && (trial.norm() - limit).abs() < band * limit {
+        2.0 * band * limit / friction_gradient
+    } else {
+        f64::INFINITY
+    };
+    let ell = rho
+        .min(slip_scale)
+        .min(limit_scale)
+        .min(normal_band_scale)
+        .min(friction_band_scale)
+        .min(10.0);
+    let penalties = law.normal_penalty() + law.tangential_penalty();
+    let lambda_t = state.tangential_multiplier.norm();
+    let force_scale = t_n + state.normal_multiplier + w.norm() + lambda_t + penalties * ell;
+    let round_off = 16.0
+        * EPS
+        * (penalties * (case.y.norm() + state.slip_reference.norm() + case.tool.size())
+            + state.normal_multiplier
+            + t_n
+            + lambda_t
+            + 2.0 * w.norm());
+    let h = ell * (round_off / (64.0 * force_scale)).cbrt().clamp(1e-8, 1e-3);
+    let normal_edge =
+        ((x - normal_width).abs().min((x + normal_width).abs())) / law.normal_penalty();
+    let friction_edge = if friction > 0.0 {
+        let m = trial.norm();
+        ((m - (1.0 - band) * limit).abs()).min((m - (1.0 + band) * limit).abs()) / friction_gradient
+    } else {
+        f64::INFINITY
+    };
+    FdScales {
+        h,
+        ell,
+        force_scale,
+        round_off,
+        band_ok: normal_edge >= 2.0 * h && friction_edge >= 2.0 * h && ell >= 1e-3,
+    }
+}
+
+/// Eq. S1–S2 with the tangent of Eq. I5–I7 carried through the rounding
+/// (`docs/contact-kernels.md`, "Smoothed kinks"): `K` equals the central
+/// differences of `r_y` at 500 states inside the normal band and 500
+/// inside the friction band on each tool (`smoothed_case`), with the
+/// tolerance of `tangent_matches_central_differences_in_every_status`
+/// (`smoothed_scales`). In the friction band the friction force is below
+/// both `|t*|` and `μ t_N` (`f(r) ≤ min(r, 1)`).
+///
+/// Power (asserted): the non-smooth normal stiffness `ε_N n⊗n` in place of
+/// `ε_N s′ n⊗n` fails the same check at ≥ 90 % of the normal-band states
+/// with `s′ < 0.9`; the slip tangent of Eq. I7 in place of the friction
+/// band's fails it at ≥ 90 % of the friction-band states.
+#[test]
+fn smoothed_tangent_matches_central_differences() {
+    let mut rng = StdRng::seed_from_u64(0x5_0007);
+    for shape in SHAPES {
+        for band in [Band::Normal, Band::Friction] {
+            let mut tally = Tally::default();
+            while tally.accepted < 500 {
+                let tool = Tool::random(shape, &mut rng);
+                let Some(case) = smoothed_case(&mut rng, &tool, band) else {
+                    continue;
+                };
+                let scales = smoothed_scales(&case);
+                if !scales.band_ok {
+                    tally.rejected_in_band += 1;
+                    continue;
+                }
+                let response = evaluate(&case, &case.y);
+                assert_ne!(response.status, ContactStatus::Open, "{case:?}");
+                let mut jacobian = Matrix3::zeros();
+                for j in 0..3 {
+                    let mut plus = case.y;
+                    let mut minus = case.y;
+                    plus[j] += scales.h;
+                    minus[j] -= scales.h;
+                    let difference =
+                        evaluate(&case, &plus).residual - evaluate(&case, &minus).residual;
+                    jacobian.set_column(j, &(difference / (plus[j] - minus[j])));
+                }
+                let tol = scales.tangent_tolerance();
+                let error = max_abs(&(response.tangent - jacobian));
+                assert!(
+                    error <= tol,
+                    "{shape:?} {band:?}: |K − FD| = {error:e} > {tol:e}\nK = {}\nFD = {jacobian}\n{case:?}",
+                    response.tangent
+                );
+                tally.worst_ratio = tally.worst_ratio.max(error / tol);
+                tally.accepted += 1;
+                let law = &case.law;
+                let point = tool.query(&case.y).expect("off the centre");
+                let x = case.state.normal_multiplier
+                    - law.normal_penalty() * (point.distance - law.offset());
+                let (t_n, slope) = rounded(x, law.normal_penalty() * law.smoothing().gap_width);
+                if band == Band::Friction {
+                    let n = point.normal;
+                    let hessian = point.hessian;
+                    let w = case.state.tangential_multiplier
+                        + law.tangential_penalty() * (case.y - case.state.slip_reference);
+                    let trial_vector = w - n.dot(&w) * n;
+                    let trial = trial_vector.norm();
+                    let friction_force = response.tangential_force.norm();
+                    let limit = law.friction() * t_n;
+                    let bound = trial.min(limit);
+                    assert!(
+                        friction_force <= bound * (1.0 + 4.0 * EPS),
+                        "{shape:?}: |t_T| = {friction_force} above min(|t*|, μ t_N) = {bound}"
+                    );
+                    // Eq. I7's slip tangent at the same state, in place of
+                    // the band's.
+                    let projector = Matrix3::identity() - n * n.transpose();
+                    let a = law.tangential_penalty() * projector
+                        - n.dot(&w) * hessian
+                        - n * (hessian * w).transpose();
+                    let direction = trial_vector / trial;
+                    let slip = law.normal_penalty() * slope * n * n.transpose()
+                        - t_n * hessian
+                        - (law.friction() * law.normal_penalty() * slope)
+                            * direction
+                            * n.transpose()
+                        + (limit / trial)
+                            * (Matrix3::identity() - direction * direction.transpose())
+                            * a;
+                    tally.examined += 1;
+                    if max_abs(&(slip - jacobian)) > tol {
+                        tally.flagged += 1;
+                    }
+                }
+                if band == Band::Normal && slope < 0.9 {
+                    let n = point.normal;
+                    let wrong =
+                        response.tangent + law.normal_penalty() * (1.0 - slope) * n * n.transpose();
+                    tally.examined += 1;
+                    if max_abs(&(wrong - jacobian)) > tol {
+                        tally.flagged += 1;
+                    }
+                }
+            }
+            println!(
+                "smoothed {shape:?} {band:?}: {} states, {} redrawn near a band edge, max |K − FD|/tol = {:.3e}; \
+                 wrong tangent rejected {}/{}",
+                tally.accepted,
+                tally.rejected_in_band,
+                tally.worst_ratio,
+                tally.flagged,
+                tally.examined
+            );
+            if tally.examined > 0 {
+                assert!(
+                    tally.flagged * 10 >= tally.examined * 9,
+                    "{shape:?}: weak test"
+                );
+            }
+        }
+    }
+}
+
+/// Eq. S3: the kernel's `normal_potential` is the potential of the rounded
+/// normal law: its central differences equal `r_y = −t_N n` at 500
+/// frictionless states in the normal band on each tool. Tolerance as in
+/// `residual_is_the_gradient_of_the_potential`, with `Π_M = (t_N + ε_N
+/// ℓ)²/(2 ε_N) + ε_N δ_g²/6` (Eq. S3's constant).
+#[test]
+fn smoothed_residual_is_the_gradient_of_its_potential() {
+    let mut rng = StdRng::seed_from_u64(0x5_9077);
+    for shape in SHAPES {
+        let mut accepted = 0;
+        let mut worst = 0.0f64;
+        while accepted < 500 {
+            let tool = Tool::random(shape, &mut rng);
+            let Some(mut case) = smoothed_case(&mut rng, &tool, Band::Normal) else {
+                continue;
+            };
+            let law = case.law;
+            case.law = AugmentedLagrangian::new(
+                law.normal_penalty(),
+                law.tangential_penalty(),
+                0.0,
+                law.offset(),
+            )
+            .and_then(|l| l.with_smoothing(law.smoothing()))
+            .expect("valid");
+            let scales = smoothed_scales(&case);
+            if !scales.band_ok {
+                continue;
+            }
+            let response = evaluate(&case, &case.y);
+            let (ell, h) = (scales.ell, scales.h);
+            let eps_n = law.normal_penalty();
+            let width = law.smoothing().gap_width;
+            let potential_scale = (response.normal_force + eps_n * ell).powi(2) / (2.0 * eps_n)
+                + eps_n * width * width / 6.0;
+            let potential_round_off = 16.0
+                * EPS
+                * (potential_scale + response.normal_force * (case.y.norm() + tool.size()));
+            let ratio = h / ell;
+            let tol = 32.0 * ratio * ratio * potential_scale / ell
+                + potential_round_off / h
+                + scales.round_off;
+            for j in 0..3 {
+                let mut plus = case.y;
+                let mut minus = case.y;
+                plus[j] += h;
+                minus[j] -= h;
+                let derivative = (evaluate(&case, &plus).normal_potential
+                    - evaluate(&case, &minus).normal_potential)
+                    / (plus[j] - minus[j]);
+                let error = (derivative - response.residual[j]).abs();
+                assert!(
+                    error <= tol,
+                    "{shape:?}: |∂Π/∂y − r| = {error:e} > {tol:e}: {case:?}"
+                );
+                worst = worst.max(error / tol);
+            }
+            accepted += 1;
+        }
+        println!("smoothed potential {shape:?}: {accepted} states, max error/tol = {worst:.3e}");
+    }
+}
+
+/// Eq. S1 at its edges and without width: the rounded force and its slope
+/// are continuous at `x = ±ε_N δ_g` (within `4 ε` of the force scale over a
+/// step of `10⁻⁹` of the width, the slope within `10⁻⁸`); zero widths give
+/// the non-smooth kernel's response bit for bit at 1,000 random states.
+#[test]
+fn smoothed_law_is_continuous_and_reduces_to_the_plain_one() {
+    let mut rng = StdRng::seed_from_u64(0x5_C0);
+    for (eps_n, gap_width) in [(1200.0, 0.02), (100.0, 0.5), (1e4, 1e-4)] {
+        let law = AugmentedLagrangian::new(eps_n, eps_n, 0.0, 0.0)
+            .and_then(|l| {
+                l.with_smoothing(Smoothing {
+                    gap_width,
+                    friction_width: 0.0,
+                })
+            })
+            .unwrap();
+        let plane = Tool {
+            shape: Shape::Plane,
+            centre: Vector3::zeros(),
+            radius: 1.0,
+            frame: frame_from(Vector3::z()),
+        };
+        let width = eps_n * gap_width;
+        let force_at = |x: f64| {
+            // x = λ_N − ε_N g with λ_N = 0: g = −x/ε_N.
+            let y = Vector3::new(0.3, -0.2, -x / eps_n);
+            let state = ImplicitContactState::new(&y);
+            let r = law.evaluate(&state, &y, plane.query(&y).as_ref()).unwrap();
+            (r.normal_force, r.tangent[(2, 2)] / eps_n)
+        };
+        for edge in [-width, width] {
+            let delta = 1e-9 * width;
+            let (below, slope_below) = force_at(edge - delta);
+            let (above, slope_above) = force_at(edge + delta);
+            assert!(
+                (above - below).abs() <= 4.0 * delta + 4.0 * EPS * width,
+                "force jumps at {edge}: {below} → {above}"
+            );
+            assert!(
+                (slope_above - slope_below).abs() <= 1e-8,
+                "slope jumps at {edge}: {slope_below} → {slope_above}"
+            );
+        }
+        assert_eq!(force_at(-1.0001 * width).0, 0.0);
+        assert!(force_at(-0.9999 * width).0 > 0.0);
+    }
+    for shape in SHAPES {
+        for target in [
+            ContactStatus::Open,
+            ContactStatus::Stick,
+            ContactStatus::Slip,
+        ] {
+            for _ in 0..250 / 3 + 1 {
+                let tool = Tool::random(shape, &mut rng);
+                let case = random_case(&mut rng, &tool, target, None);
+                let zero = case.law.with_smoothing(Smoothing::default()).unwrap();
+                let point = tool.query(&case.y);
+                let plain = case
+                    .law
+                    .evaluate(&case.state, &case.y, point.as_ref())
+                    .unwrap();
+                let smoothed = zero.evaluate(&case.state, &case.y, point.as_ref()).unwrap();
+                assert_eq!(plain, smoothed);
+                let expected =
+                    0.5 * plain.normal_force * plain.normal_force / case.law.normal_penalty();
+                assert_eq!(plain.normal_potential, expected);
+            }
+        }
+    }
+}
+
+/// Eq. S1 under the Uzawa iteration (doc Sec. "Smoothed kinks"): the node
+/// of `uzawa_converges_at_the_predicted_rate` pressed by `F` through a
+/// spring `k` that is unloaded on the plane converges to the fixed point
+/// of the rounded law, `t_N = λ_N = F + k g` with `s(λ_N − ε_N g) = λ_N`:
+/// a gap `g ∈ [0, δ_g]`, zero when `F ≥ ε_N δ_g` (the straight branch),
+/// positive below, where the node hovers on the rounded force. The gap is
+/// compared with the root of that equation found by bisection here; loads
+/// from deep inside the band to beyond it. Tolerances: `1e4` floors of
+/// `uzawa_converges_at_the_predicted_rate` on the force, that over
+/// `k + ε_N s′` on the gap.
+#[test]
+fn smoothed_uzawa_converges_to_a_gap_within_the_width() {
+    let (k, k_t) = (100.0, 50.0);
+    let (eps_n, eps_t, mu) = (300.0, 50.0, 0.4);
+    let gap_width = 0.05;
+    let width = eps_n * gap_width;
+    for force in [0.1, 3.0, 40.0] {
+        let law = AugmentedLagrangian::new(eps_n, eps_t, mu, 0.0)
+            .and_then(|l| {
+                l.with_smoothing(Smoothing {
+                    gap_width,
+                    friction_width: 0.2,
+                })
+            })
+            .unwrap();
+        let problem = one_node(0x5_02A7A, k, k_t, &law, force, 0.3 * mu * force);
+        let mut state = ImplicitContactState::new(&problem.start);
+        let mut y = problem.start;
+        let mut response = None;
+        for _ in 0..60 {
+            let (solved, r) = newton(
+                &law,
+                &state,
+                &problem.tool,
+                &problem.spring,
+                &problem.external,
+                y,
+                problem.newton_tolerance,
+            );
+            y = solved;
+            state.augment(&r);
+            response = Some(r);
+        }
+        let response = response.unwrap();
+        // φ(g) = s(F + k g − ε_N g) − (F + k g): φ(0) ≥ 0 (s(x) ≥ x), and
+        // φ(δ_g) < 0 unless F ≥ ε_N δ_g, where g = 0 is the root.
+        let phi = |g: f64| rounded(force + k * g - eps_n * g, width).0 - (force + k * g);
+        let expected_gap = if force >= width {
+            0.0
+        } else {
+            let (mut low, mut high) = (0.0, gap_width);
+            assert!(phi(low) >= 0.0 && phi(high) < 0.0);
+            for _ in 0..200 {
+                let mid = 0.5 * (low + high);
+                if phi(mid) >= 0.0 {
+                    low = mid
+                } else {
+                    high = mid
+                }
+            }
+            0.5 * (low + high)
+        };
+        let (_, slope) = rounded(force + k * expected_gap - eps_n * expected_gap, width);
+        let gap_round_off = 16.0 * EPS * (problem.start.norm() + problem.tool.size());
+        println!(
+            "smoothed Uzawa, F = {force} N: t_N = {}, gap {:e} (expected {expected_gap:e}, width {gap_width})",
+            response.normal_force, response.gap
+        );
+        assert!(
+            (response.normal_force - (force + k * response.gap)).abs() <= 1e4 * problem.floor,
+            "equilibrium: t_N = {} against F + k g = {}",
+            response.normal_force,
+            force + k * response.gap
+        );
+        assert!((state.normal_multiplier - response.normal_force).abs() <= 1e4 * problem.floor);
+        assert!(
+            (response.gap - expected_gap).abs()
+                <= 1e4 * problem.floor / (k + eps_n * slope) + gap_round_off,
+            "gap {} vs {expected_gap}",
+            response.gap
+        );
+        assert!(response.gap >= -gap_round_off && response.gap <= gap_width);
+    }
 }
 
 // ---------------------------------------------------------------------------

@@ -68,6 +68,7 @@ fn pressed_on_a_tool(cells: usize, penalty: ExplicitPenalty, time_step: f64, dep
             gap_tolerance: 1e-3,
             multiplier_tolerance: 1e-3,
             tangential_penalty_scale: 1.0,
+            smoothing: Default::default(),
             explicit_stiffness: penalty,
             explicit_damping: 0.0,
         },

@@ -318,6 +318,30 @@ fn bad_forming_cases_name_key_value_and_expectation() {
                 &base,
                 &[(
                     "[output]",
+                    "[contact]\nnormal_smoothing = -0.01\n\n[output]",
+                )],
+            ),
+            vec!["contact.normal_smoothing", "-0.01", "a gap width ≥ 0 mm"],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[output]",
+                    "[contact]\nfriction_smoothing = 1.0\n\n[output]",
+                )],
+            ),
+            vec![
+                "contact.friction_smoothing",
+                "1",
+                "a fraction in [0, 1) of the friction limit",
+            ],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[output]",
                     "[contact]\nexplicit_pressure_stiffness = -2.0\n\n[output]",
                 )],
             ),

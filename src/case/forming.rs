@@ -22,6 +22,7 @@ use super::explicit::{
     SolverKind,
 };
 use crate::config::{ConfigError, TomlChecker, parse_toml};
+use crate::contact::kernel::Smoothing;
 use crate::material::MaterialSpec;
 use crate::model::{ExplicitPenalty, LoadAmplitude};
 use crate::solver::NewtonParameters;
@@ -196,6 +197,8 @@ struct ContactRaw {
     penalty: Option<Spanned<f64>>,
     penalty_scale: Option<Spanned<f64>>,
     tangential_penalty_scale: Option<Spanned<f64>>,
+    normal_smoothing: Option<Spanned<f64>>,
+    friction_smoothing: Option<Spanned<f64>>,
     gap_tolerance: Option<Spanned<f64>>,
     multiplier_tolerance: Option<Spanned<f64>>,
     explicit_stiffness: Option<Spanned<f64>>,
@@ -505,6 +508,10 @@ pub struct ContactSettings {
     pub penalty_scale: f64,
     /// Ratio `ε_T/ε_N` of the tangential (stick) to the normal penalty.
     pub tangential_penalty_scale: f64,
+    /// The rounding of the augmented Lagrangian's kinks (quasi-static
+    /// path; docs/contact.md, "Smoothed kinks"): `normal_smoothing` \[mm\]
+    /// and `friction_smoothing` (a fraction), both 0 by default.
+    pub smoothing: Smoothing,
     /// Largest accepted penetration \[mm\]; `None`: 1 % of the offset.
     pub gap_tolerance: Option<f64>,
     /// Largest accepted relative change of the multipliers per
@@ -539,6 +546,7 @@ impl Default for ContactSettings {
             penalty: None,
             penalty_scale: 1.0,
             tangential_penalty_scale: 1.0,
+            smoothing: Smoothing::default(),
             gap_tolerance: None,
             multiplier_tolerance: 1e-3,
             explicit_stiffness: 0.1,
@@ -1056,6 +1064,22 @@ impl FormingCase {
                     v,
                     "contact.tangential_penalty_scale",
                     "a ratio > 0 of the tangential to the normal penalty",
+                )?;
+            }
+            if let Some(v) = &c.normal_smoothing {
+                contact.smoothing.gap_width = check.range(
+                    v,
+                    "contact.normal_smoothing",
+                    |x| x >= 0.0,
+                    "a gap width ≥ 0 mm",
+                )?;
+            }
+            if let Some(v) = &c.friction_smoothing {
+                contact.smoothing.friction_width = check.range(
+                    v,
+                    "contact.friction_smoothing",
+                    |x| (0.0..1.0).contains(&x),
+                    "a fraction in [0, 1) of the friction limit",
                 )?;
             }
             if let Some(v) = &c.gap_tolerance {

@@ -653,6 +653,7 @@ impl FormingCase {
                             .unwrap_or(0.01 * ply_spec.thickness),
                         multiplier_tolerance: self.contact.multiplier_tolerance,
                         tangential_penalty_scale: self.contact.tangential_penalty_scale,
+                        smoothing: self.contact.smoothing,
                         explicit_stiffness: self.contact.explicit_penalty(),
                         explicit_damping: self.contact.explicit_damping,
                     },

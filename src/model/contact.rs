@@ -29,7 +29,7 @@ use super::term::{
 };
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
-    PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState,
+    PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState, Smoothing,
     couple_tool_translation, max_curvature, penalty_lanes_one_by_one, stable_penalty_stiffness,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
@@ -134,6 +134,10 @@ pub struct ContactOptions {
     /// Ratio `ε_T/ε_N` of the tangential (stick) penalty to the normal
     /// penalty of each node (docs/contact.md, "The automatic penalty").
     pub tangential_penalty_scale: f64,
+    /// The rounding of the augmented Lagrangian's kinks on the
+    /// quasi-static path (docs/contact.md, "Smoothed kinks"; zero widths:
+    /// none).
+    pub smoothing: Smoothing,
     /// How each node's explicit penalty stiffness is chosen.
     pub explicit_stiffness: ExplicitPenalty,
     /// Explicit normal contact damping as a fraction of the critical
@@ -346,6 +350,7 @@ impl ToolContact {
             self.options.friction,
             self.offsets[i],
         )
+        .and_then(|k| k.with_smoothing(self.options.smoothing))
         .map_err(|e| self.failure(i, e.to_string()))
     }
 
@@ -360,6 +365,7 @@ impl ToolContact {
                 let y = this.relative(i, u);
                 let cull = this.offsets[i]
                     + CULL_MARGIN
+                    + this.options.smoothing.gap_width
                     + this.implicit[i].normal_multiplier / this.penalties[i];
                 let point = this.surface.closest(&y, cull);
                 let kernel = this.kernel(i).map_err(|f| f.reason)?;
@@ -388,6 +394,7 @@ impl ImplicitResponse {
             status: ContactStatus::Open,
             gap: f64::INFINITY,
             normal_force: 0.0,
+            normal_potential: 0.0,
             tangential_force: Vector3::zeros(),
             slip_increment: Vector3::zeros(),
             normal: Vector3::zeros(),
@@ -436,7 +443,7 @@ impl Term for ToolContact {
                 k[16 * i..16 * i + 16].copy_from_slice(coupled.tangent.as_slice());
             }
             tool_force += coupled.residual[3];
-            potential += 0.5 * r.normal_force * r.normal_force / self.penalties[i];
+            potential += r.normal_potential;
             let out = &mut self.outputs[i];
             out.status = r.status.code();
             out.normal_force = r.normal_force;

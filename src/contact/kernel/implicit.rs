@@ -42,6 +42,56 @@ pub struct AugmentedLagrangian {
     tangential_penalty: f64,
     friction: f64,
     offset: f64,
+    smoothing: Smoothing,
+}
+
+/// The widths over which the kernel rounds its two kinks (doc Sec.
+/// "Smoothed kinks"): the normal law's open/closed switch and the friction
+/// law's stick/slip switch, each replaced by a parabola that joins the two
+/// straight branches with a continuous slope. Zero widths give the
+/// non-smooth law exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Smoothing {
+    /// Gap width `δ_g` \[mm\] `≥ 0`: the normal force `t_N = s(λ_N − ε_N g)`
+    /// with `s` the Macaulay bracket rounded over `|x| < ε_N δ_g` (Eq. S1):
+    /// a node closer than `λ_N/ε_N + δ_g` to the surface carries a small
+    /// force, and the converged gap of a lightly pressed node lies in
+    /// `[0, δ_g]`.
+    pub gap_width: f64,
+    /// Relative width `δ_r ∈ [0, 1)` of the friction law's rounding: the
+    /// friction force `μ t_N f(|t*|/(μ t_N))` with `f` the minimum
+    /// `min(r, 1)` rounded over `|r − 1| < δ_r` (Eq. S2).
+    pub friction_width: f64,
+}
+
+/// The Macaulay bracket `⟨x⟩` rounded over `|x| < w` (Eq. S1) and its
+/// slope: `0` below `−w`, `(x + w)²/(4w)` inside, `x` above; `w = 0` is
+/// the bracket itself (slope 1 at `x = 0`, the closed side).
+#[inline]
+fn rounded_bracket(x: f64, w: f64) -> (f64, f64) {
+    if x >= w {
+        (x, 1.0)
+    } else if x <= -w {
+        (0.0, 0.0)
+    } else {
+        let a = x + w;
+        (a * a / (4.0 * w), a / (2.0 * w))
+    }
+}
+
+/// The integral of [`rounded_bracket`] from `−∞` (Eq. S3): `0` below
+/// `−w`, `(x + w)³/(12w)` inside, `x²/2 + w²/6` above: the normal law's
+/// potential is this over `ε_N`.
+#[inline]
+fn rounded_bracket_integral(x: f64, w: f64) -> f64 {
+    if x >= w {
+        0.5 * x * x + w * w / 6.0
+    } else if x <= -w {
+        0.0
+    } else {
+        let a = x + w;
+        a * a * a / (12.0 * w)
+    }
 }
 
 impl AugmentedLagrangian {
@@ -62,7 +112,39 @@ impl AugmentedLagrangian {
             tangential_penalty: positive("tangential_penalty", tangential_penalty)?,
             friction: non_negative("friction", friction)?,
             offset: non_negative("offset", offset)?,
+            smoothing: Smoothing::default(),
         })
+    }
+
+    /// The same settings with the kinks rounded over `smoothing` (doc Sec.
+    /// "Smoothed kinks"; zero widths: the non-smooth law).
+    ///
+    /// # Errors
+    /// A gap width that is negative or not finite, a friction width outside
+    /// `[0, 1)`.
+    pub fn with_smoothing(mut self, smoothing: Smoothing) -> Result<Self, ContactError> {
+        non_negative("gap width", smoothing.gap_width)?;
+        let w = smoothing.friction_width;
+        if !(0.0..1.0).contains(&w) {
+            return Err(ContactError::InvalidSetting {
+                name: "friction width",
+                value: w,
+                expected: "0 ≤ δ_r < 1",
+            });
+        }
+        self.smoothing = smoothing;
+        Ok(self)
+    }
+
+    /// The rounding of the kinks.
+    pub fn smoothing(&self) -> Smoothing {
+        self.smoothing
+    }
+
+    /// How far beyond `λ_N/ε_N` from the offset surface a node still
+    /// carries a force \[mm\]: the gap width of the rounding.
+    pub fn reach(&self) -> f64 {
+        self.smoothing.gap_width
     }
 
     /// Changes the mid-surface offset \[mm\] (half the ply thickness).
@@ -124,16 +206,22 @@ impl AugmentedLagrangian {
         let hessian = &point.hessian;
         let gap = point.distance - self.offset;
         let trial_normal = state.normal_multiplier - self.normal_penalty * gap;
-        if trial_normal < 0.0 {
+        // Eq. I1 with the bracket rounded over ε_N δ_g (Eq. S1).
+        let normal_width = self.normal_penalty * self.smoothing.gap_width;
+        if trial_normal < 0.0 && trial_normal <= -normal_width {
             return Ok(ImplicitResponse::open(gap, n));
         }
-        let normal_force = trial_normal;
+        let (normal_force, normal_slope) = rounded_bracket(trial_normal, normal_width);
+        let normal_potential =
+            rounded_bracket_integral(trial_normal, normal_width) / self.normal_penalty;
+        // ∂t_N/∂y = −ε_N s′ n.
+        let normal_stiffness = self.normal_penalty * normal_slope;
         let nn = n * n.transpose();
         let projector = Matrix3::identity() - nn;
         let relative = y - state.slip_reference;
         let slip_increment = projector * relative;
         // Eq. I5: normal part.
-        let mut tangent = self.normal_penalty * nn - normal_force * hessian;
+        let mut tangent = normal_stiffness * nn - normal_force * hessian;
         let (status, tangential_force) = if self.friction == 0.0 {
             (ContactStatus::Slip, Vector3::zeros())
         } else {
@@ -146,17 +234,42 @@ impl AugmentedLagrangian {
                 - n * (hessian * w).transpose();
             let limit = self.friction * normal_force;
             let trial_norm = trial.norm();
-            if trial_norm <= limit {
+            let band = self.smoothing.friction_width;
+            if trial_norm <= (1.0 - band) * limit {
                 tangent += trial_tangent;
                 (ContactStatus::Stick, trial)
-            } else {
+            } else if trial_norm >= (1.0 + band) * limit {
                 // trial_norm > limit ≥ 0: the division is safe.
                 let direction = trial / trial_norm;
                 let ratio = limit / trial_norm;
                 let spread = Matrix3::identity() - direction * direction.transpose();
-                tangent += -(self.friction * self.normal_penalty) * direction * n.transpose()
+                tangent += -(self.friction * normal_stiffness) * direction * n.transpose()
                     + ratio * spread * trial_tangent;
                 (ContactStatus::Slip, limit * direction)
+            } else {
+                // Eq. S2, inside the band (so band > 0, limit > 0 and
+                // trial_norm > 0): t_T = L f(r) t̂ with r = |t*|/L and
+                // f(r) = r − (r − 1 + δ_r)²/(4δ_r);
+                // ∂t_T/∂y = (f − r f′) t̂ ⊗ ∂L/∂y + f′ t̂ ⊗ t̂ A
+                //           + (L f/|t*|)(I − t̂⊗t̂) A,  ∂L/∂y = −μ ε_N s′ n.
+                let direction = trial / trial_norm;
+                let r = trial_norm / limit;
+                let a = r - 1.0 + band;
+                let f = r - a * a / (4.0 * band);
+                let slope = 1.0 - a / (2.0 * band);
+                let spread = Matrix3::identity() - direction * direction.transpose();
+                let along = direction * direction.transpose();
+                tangent += -((f - r * slope) * self.friction * normal_stiffness)
+                    * direction
+                    * n.transpose()
+                    + slope * along * trial_tangent
+                    + (limit * f / trial_norm) * spread * trial_tangent;
+                let status = if r <= 1.0 {
+                    ContactStatus::Stick
+                } else {
+                    ContactStatus::Slip
+                };
+                (status, (limit * f) * direction)
             }
         };
         let residual = tangential_force - normal_force * n;
@@ -167,6 +280,7 @@ impl AugmentedLagrangian {
             status,
             gap,
             normal_force,
+            normal_potential,
             tangential_force,
             slip_increment,
             normal: n,
@@ -284,6 +398,9 @@ pub struct ImplicitResponse {
     pub gap: f64,
     /// `t_N ≥ 0` \[N\] (Eq. I1).
     pub normal_force: f64,
+    /// The normal law's potential \[N·mm\], whose derivative in `y` is the
+    /// normal part of `r_y`: `t_N²/(2ε_N)` without rounding, Eq. S3 with.
+    pub normal_potential: f64,
     /// `t_T` \[N\], tangent to the current plane, along the slip: the force
     /// on the node is `−t_T` (Eq. I3).
     pub tangential_force: Vector3<f64>,
@@ -304,6 +421,7 @@ impl ImplicitResponse {
             status: ContactStatus::Open,
             gap,
             normal_force: 0.0,
+            normal_potential: 0.0,
             tangential_force: Vector3::zeros(),
             slip_increment: Vector3::zeros(),
             normal,

@@ -36,7 +36,7 @@ pub use explicit::{
 };
 pub use implicit::{
     AugmentationNorms, AugmentationReport, AugmentedLagrangian, ImplicitContactState,
-    ImplicitResponse,
+    ImplicitResponse, Smoothing,
 };
 pub use lanes::{
     PenaltyBatch, PenaltyInput, PenaltyOutput, penalty_lanes, penalty_lanes_one_by_one,
