@@ -297,3 +297,73 @@ fn hemisphere_0_explicit_agrees_with_quasi_static() {
         100.0 * rms / peak
     );
 }
+
+/// The settings with which the quasi-static path passes the flange's
+/// loss of stability to the full depth (`docs/solver.md`, "Forming: the
+/// hemisphere to full depth"): the contact's kinks rounded, the automatic
+/// viscous stabilisation, 60 iterations per attempt and steps down to
+/// 1e-6 of the stroke.
+const FULL_DEPTH_CONTACT: &str = "[contact]\nnormal_smoothing = 0.02\nfriction_smoothing = 0.2\n\n";
+const FULL_DEPTH_SOLVER: &str =
+    "[solver]\nstabilisation = \"automatic\"\nmax_iterations = 60\nmin_increment = 1e-6\n\n";
+
+/// Requirement: the quasi-static path reaches the full depth (75 mm) with
+/// the settings above, its viscous dissipation below 1 % of the internal
+/// energy (the issue's bound), and agrees with the explicit run of the
+/// same 12 × 12-cell blank: punch force within 3 % RMS of the peak, outer
+/// contour within 1 mm RMS at 75 mm (the issue's limits). The zone shear
+/// angles are compared to 20 mm in
+/// `hemisphere_0_explicit_agrees_with_quasi_static`; deeper, a 20 mm zone
+/// window on 25 mm cells averages one or two elements, which the two paths
+/// shear differently once the flange wrinkles (measured 2.1° apart at
+/// 60 mm here, 0.5° on 24 × 24 cells: `docs/solver.md`).
+#[test]
+fn hemisphere_0_quasi_static_reaches_full_depth_and_agrees_with_explicit() {
+    let explicit = coarse("hemisphere-0.toml", 12, &[]);
+    let settings = format!("{FULL_DEPTH_CONTACT}{FULL_DEPTH_SOLVER}[gravity]");
+    let quasi_static = coarse(
+        "hemisphere-0.toml",
+        12,
+        &[
+            ("solver = \"explicit\"", ""),
+            ("[gravity]", settings.as_str()),
+        ],
+    );
+    let (out_e, out_q) = (TempDir::new().unwrap(), TempDir::new().unwrap());
+    let e = run(&explicit, out_e.path());
+    let q = run(&quasi_static, out_q.path());
+    let last = q.history.last().unwrap();
+    assert!(
+        (last.stroke - 75.0).abs() < 1e-9,
+        "reached {} mm",
+        last.stroke
+    );
+    let (internal, dissipated, ratio) = q.stabilisation.unwrap();
+    assert!(internal > 0.0 && dissipated > 0.0);
+    assert!(ratio < 0.01, "dissipated/internal up to {ratio}");
+    let (fe, fq) = (force_curve(&e), force_curve(&q));
+    let peak = fq.iter().fold(0.0f64, |m, p| m.max(p.1));
+    let rms = (fq
+        .iter()
+        .map(|&(x, f)| (interpolate(&fe, x) - f).powi(2))
+        .sum::<f64>()
+        / fq.len() as f64)
+        .sqrt();
+    assert!(rms < 0.03 * peak, "force RMS {rms} N against peak {peak} N");
+    let (ce, cq) = (final_contour(out_e.path()), final_contour(out_q.path()));
+    assert_eq!(ce.len(), cq.len());
+    let contour_rms = (ce
+        .iter()
+        .zip(&cq)
+        .map(|(a, b)| (a.1[0] - b.1[0]).powi(2) + (a.1[1] - b.1[1]).powi(2))
+        .sum::<f64>()
+        / ce.len() as f64)
+        .sqrt();
+    assert!(contour_rms < 1.0, "contour RMS {contour_rms} mm");
+    eprintln!(
+        "quasi-static to 75 mm ({} steps, dissipated {:.3} % of the internal energy) against explicit: force RMS {:.2} % of the peak {peak:.3} N, contour RMS {contour_rms:.3} mm",
+        q.history.len(),
+        100.0 * ratio,
+        100.0 * rms / peak
+    );
+}

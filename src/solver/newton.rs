@@ -127,6 +127,16 @@ const STABILISATION_MIN_MASS: f64 = 1e-3;
 const STABILISATION_BOOST: f64 = 10.0;
 /// Largest factor on the automatic damping.
 const STABILISATION_MAX_BOOST: f64 = 1e3;
+/// The first shift `μ` of `K + μ diag|K|` when the Newton direction does
+/// not descend (docs/solver.md, "Newton", step 2).
+const MIN_SHIFT: f64 = 1e-6;
+/// The first shift tried when the line search finds no acceptable step
+/// along the Newton direction (step 3): large enough to turn the direction
+/// measurably towards the diagonal, each further try 100 times larger.
+const LINE_SEARCH_SHIFT: f64 = 1e-4;
+/// The largest shift: beyond it the direction is the diagonally scaled
+/// steepest descent to within 10⁻³.
+const MAX_SHIFT: f64 = 1e3;
 /// From this fraction of the programme on, the dissipated-to-internal
 /// energy ratio counts for the warning (the ply is nearly unstrained
 /// before).
@@ -525,7 +535,8 @@ impl Newton<'_> {
         }
     }
 
-    /// Solves `(K + μ diag K) du = −r`, raising μ until `du` descends.
+    /// Solves `(K + μ diag K) du = −r`, raising μ until `du` descends:
+    /// first `μ = 0` (the Newton direction), then from `MIN_SHIFT` on.
     fn descent_direction(&mut self, r: &[f64], du: &mut [f64]) -> Result<f64, AttemptError> {
         du.copy_from_slice(r);
         du.iter_mut().for_each(|v| *v = -*v);
@@ -538,14 +549,26 @@ impl Newton<'_> {
             Ok(_) | Err(LinearSolverError::Singular(_)) | Err(LinearSolverError::NonFinite) => {}
             Err(e) => return Err(e.into()),
         }
+        self.shifted_direction(r, du, MIN_SHIFT)
+    }
+
+    /// Solves `(K + μ diag K) du = −r` for `μ = first, 10 first, …` up to
+    /// `MAX_SHIFT` until `du` descends (`r·du < 0`); the solver's values
+    /// must hold the unshifted tangent `K`.
+    fn shifted_direction(
+        &mut self,
+        r: &[f64],
+        du: &mut [f64],
+        first: f64,
+    ) -> Result<f64, AttemptError> {
         // Shifted tangent: remember the diagonal, add μ |diag|.
         let values = self.solver.values_mut();
         for (k, &slot) in self.work.diag_slots.iter().enumerate() {
             self.work.diag[k] = values[slot];
         }
         let scale = self.work.diag.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
-        let mut mu = 1e-6;
-        while mu <= 1e3 {
+        let mut mu = first;
+        while mu <= MAX_SHIFT {
             let values = self.solver.values_mut();
             for (k, &slot) in self.work.diag_slots.iter().enumerate() {
                 let d = self.work.diag[k];
@@ -562,6 +585,39 @@ impl Newton<'_> {
             mu *= 10.0;
         }
         Err(AttemptError::NoDescent)
+    }
+
+    /// The line search's fallback (docs/solver.md, "Newton", step 3): when
+    /// no acceptable step lies along the Newton direction, the directions
+    /// of the shifted tangents `K + μ diag|K|` for `μ = 10⁻⁴, 10⁻³, …` (each
+    /// shorter and nearer the steepest descent of the energy) until one
+    /// admits a step. Re-assembles the tangent at `u` first (the line
+    /// search left the assembler at a trial state). Returns the step length
+    /// along the direction written to `du`.
+    fn shifted_line_search(
+        &mut self,
+        u: &[f64],
+        r: &[f64],
+        du: &mut [f64],
+        energy_norm: &mut f64,
+    ) -> Result<f64, AttemptError> {
+        let mut first = LINE_SEARCH_SHIFT;
+        while first <= MAX_SHIFT {
+            self.assemble_tangent(u)?;
+            let g0 = self.shifted_direction(r, du, first)?;
+            match self.line_search(u, du, g0) {
+                Ok(alpha) => {
+                    *energy_norm = g0.abs();
+                    if trace() {
+                        eprintln!("  [newton] line search on the tangent shifted by {first:e}");
+                    }
+                    return Ok(alpha);
+                }
+                Err(AttemptError::LineSearch) => first *= 100.0,
+                Err(e) => return Err(e),
+            }
+        }
+        Err(AttemptError::LineSearch)
     }
 
     /// Newton iterations at a fixed load from the state `u` (updated in
@@ -623,7 +679,13 @@ impl Newton<'_> {
             last_energy_norm = g0.abs();
             first_energy_norm.get_or_insert(g0.abs());
             let alpha = if self.params.line_search {
-                self.line_search(u, &du, g0)?
+                match self.line_search(u, &du, g0) {
+                    Ok(alpha) => alpha,
+                    Err(AttemptError::LineSearch) => {
+                        self.shifted_line_search(u, &r, &mut du, &mut last_energy_norm)?
+                    }
+                    Err(e) => return Err(e),
+                }
             } else {
                 1.0
             };
