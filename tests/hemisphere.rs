@@ -215,6 +215,55 @@ fn interpolate(curve: &[(f64, f64)], x: f64) -> f64 {
     }
 }
 
+/// The cross-check's measures of an explicit run `e` against a
+/// quasi-static run `q` (output folders `out_e`, `out_q`), asserted within
+/// the limits: the punch force within 3 % RMS of the peak, the
+/// final outer contours within 1 mm RMS.
+struct Agreement {
+    /// RMS over the quasi-static rows of the explicit punch force
+    /// (interpolated at their depths) minus the quasi-static one \[N\].
+    force_rms: f64,
+    /// The quasi-static run's largest punch force \[N\].
+    peak: f64,
+    /// RMS distance of the final outer contours, node by node \[mm\].
+    contour_rms: f64,
+}
+
+fn assert_agreement(
+    e: &FormingSummary,
+    q: &FormingSummary,
+    out_e: &Path,
+    out_q: &Path,
+) -> Agreement {
+    let (fe, fq) = (force_curve(e), force_curve(q));
+    let peak = fq.iter().fold(0.0f64, |m, p| m.max(p.1));
+    let force_rms = (fq
+        .iter()
+        .map(|&(x, f)| (interpolate(&fe, x) - f).powi(2))
+        .sum::<f64>()
+        / fq.len() as f64)
+        .sqrt();
+    let (ce, cq) = (final_contour(out_e), final_contour(out_q));
+    assert_eq!(ce.len(), cq.len());
+    let contour_rms = (ce
+        .iter()
+        .zip(&cq)
+        .map(|(a, b)| (a.1[0] - b.1[0]).powi(2) + (a.1[1] - b.1[1]).powi(2))
+        .sum::<f64>()
+        / ce.len() as f64)
+        .sqrt();
+    assert!(
+        force_rms < 0.03 * peak,
+        "force RMS {force_rms} N against peak {peak} N"
+    );
+    assert!(contour_rms < 1.0, "contour RMS {contour_rms} mm");
+    Agreement {
+        force_rms,
+        peak,
+        contour_rms,
+    }
+}
+
 /// Requirement: the explicit [0°] run agrees with the quasi-static one —
 /// punch force within 3 % RMS of the peak force, outer contour within 1 mm
 /// RMS at the final depth, zone shear within 1.5° at every output depth
@@ -258,25 +307,11 @@ fn hemisphere_0_explicit_agrees_with_quasi_static() {
     let (out_e, out_q) = (TempDir::new().unwrap(), TempDir::new().unwrap());
     let e = run(&explicit, out_e.path());
     let q = run(&quasi_static, out_q.path());
-    let (fe, fq) = (force_curve(&e), force_curve(&q));
-    let peak = fq.iter().fold(0.0f64, |m, p| m.max(p.1));
-    let rms = (fq
-        .iter()
-        .map(|&(x, f)| (interpolate(&fe, x) - f).powi(2))
-        .sum::<f64>()
-        / fq.len() as f64)
-        .sqrt();
-    assert!(rms < 0.03 * peak, "force RMS {rms} N against peak {peak} N");
-    let (ce, cq) = (final_contour(out_e.path()), final_contour(out_q.path()));
-    assert_eq!(ce.len(), cq.len());
-    let contour_rms = (ce
-        .iter()
-        .zip(&cq)
-        .map(|(a, b)| (a.1[0] - b.1[0]).powi(2) + (a.1[1] - b.1[1]).powi(2))
-        .sum::<f64>()
-        / ce.len() as f64)
-        .sqrt();
-    assert!(contour_rms < 1.0, "contour RMS {contour_rms} mm");
+    let Agreement {
+        force_rms: rms,
+        peak,
+        contour_rms,
+    } = assert_agreement(&e, &q, out_e.path(), out_q.path());
     assert_eq!(e.forming.states.len(), q.forming.states.len());
     let mut worst_zone: f64 = 0.0;
     for (a, b) in e.forming.states.iter().zip(&q.forming.states) {
@@ -341,25 +376,11 @@ fn hemisphere_0_quasi_static_reaches_full_depth_and_agrees_with_explicit() {
     let (internal, dissipated, ratio) = q.stabilisation.unwrap();
     assert!(internal > 0.0 && dissipated > 0.0);
     assert!(ratio < 0.01, "dissipated/internal up to {ratio}");
-    let (fe, fq) = (force_curve(&e), force_curve(&q));
-    let peak = fq.iter().fold(0.0f64, |m, p| m.max(p.1));
-    let rms = (fq
-        .iter()
-        .map(|&(x, f)| (interpolate(&fe, x) - f).powi(2))
-        .sum::<f64>()
-        / fq.len() as f64)
-        .sqrt();
-    assert!(rms < 0.03 * peak, "force RMS {rms} N against peak {peak} N");
-    let (ce, cq) = (final_contour(out_e.path()), final_contour(out_q.path()));
-    assert_eq!(ce.len(), cq.len());
-    let contour_rms = (ce
-        .iter()
-        .zip(&cq)
-        .map(|(a, b)| (a.1[0] - b.1[0]).powi(2) + (a.1[1] - b.1[1]).powi(2))
-        .sum::<f64>()
-        / ce.len() as f64)
-        .sqrt();
-    assert!(contour_rms < 1.0, "contour RMS {contour_rms} mm");
+    let Agreement {
+        force_rms: rms,
+        peak,
+        contour_rms,
+    } = assert_agreement(&e, &q, out_e.path(), out_q.path());
     eprintln!(
         "quasi-static to 75 mm ({} steps, dissipated {:.3} % of the internal energy) against explicit: force RMS {:.2} % of the peak {peak:.3} N, contour RMS {contour_rms:.3} mm",
         q.history.len(),
