@@ -589,9 +589,9 @@ impl Newton<'_> {
 
     /// The line search's fallback (docs/solver.md, "Newton", step 3): when
     /// no acceptable step lies along the Newton direction, the directions
-    /// of the shifted tangents `K + μ diag|K|` for `μ = 10⁻⁴, 10⁻³, …` (each
-    /// shorter and nearer the steepest descent of the energy) until one
-    /// admits a step. Re-assembles the tangent at `u` first (the line
+    /// of the shifted tangents `K + μ diag|K|` from `μ = 10⁻⁴, 10⁻², 1, 10²`
+    /// on (each raised tenfold until it descends; each shorter and nearer
+    /// the steepest descent of the energy) until one admits a step. Re-assembles the tangent at `u` first (the line
     /// search left the assembler at a trial state). Returns the step length
     /// along the direction written to `du`.
     fn shifted_line_search(

@@ -141,12 +141,6 @@ impl AugmentedLagrangian {
         self.smoothing
     }
 
-    /// How far beyond `λ_N/ε_N` from the offset surface a node still
-    /// carries a force \[mm\]: the gap width of the rounding.
-    pub fn reach(&self) -> f64 {
-        self.smoothing.gap_width
-    }
-
     /// Changes the mid-surface offset \[mm\] (half the ply thickness).
     ///
     /// # Errors
@@ -206,7 +200,9 @@ impl AugmentedLagrangian {
         let hessian = &point.hessian;
         let gap = point.distance - self.offset;
         let trial_normal = state.normal_multiplier - self.normal_penalty * gap;
-        // Eq. I1 with the bracket rounded over ε_N δ_g (Eq. S1).
+        // Eq. I1 with the bracket rounded over ε_N δ_g (Eq. S1); open below
+        // −ε_N δ_g, and without rounding on the open side only (x = 0 is
+        // closed, as in "Degenerate cases").
         let normal_width = self.normal_penalty * self.smoothing.gap_width;
         if trial_normal < 0.0 && trial_normal <= -normal_width {
             return Ok(ImplicitResponse::open(gap, n));
