@@ -320,6 +320,22 @@ struct FdScales {
 }
 
 impl FdScales {
+    /// The scales from `ℓ`, `M` and `δr`, with the step that minimises
+    /// truncation + round-off, `32 (h/ℓ)² M/ℓ + δr/h`: `h/ℓ = (δr/(64
+    /// M))^(1/3)`, kept within `[1e-8, 1e-3]`; the state is usable when the
+    /// nearest point where the law's derivative jumps (`kink`, mm) is at
+    /// least `2 h` away and `ℓ ≥ 1e-3` mm.
+    fn new(ell: f64, force_scale: f64, round_off: f64, kink: f64) -> Self {
+        let h = ell * (round_off / (64.0 * force_scale)).cbrt().clamp(1e-8, 1e-3);
+        Self {
+            h,
+            ell,
+            force_scale,
+            round_off,
+            band_ok: kink >= 2.0 * h && ell >= 1e-3,
+        }
+    }
+
     /// Tolerance on an entry of `K` against the central difference:
     /// truncation `32 (h/ℓ)² M/ℓ`, round-off of the difference `δr/h`,
     /// round-off of `K` itself `32 ε M/ℓ` (`‖K‖ ≲ 2 M/ℓ`).
@@ -369,9 +385,6 @@ fn implicit_scales(case: &ImplicitCase, extra_position: f64) -> FdScales {
             + t_n
             + lambda_t
             + w.norm() * (1.0 + slip_amplification));
-    // The step that minimises truncation + round-off, 32 (h/ℓ)² M/ℓ + δr/h:
-    // h/ℓ = (δr/(64 M))^(1/3), kept within [1e-8, 1e-3].
-    let h = ell * (round_off / (64.0 * force_scale)).cbrt().clamp(1e-8, 1e-3);
     let normal_kink = trial_normal.abs() / law.normal_penalty();
     let friction_kink = if active && friction > 0.0 {
         (trial.norm() - friction * t_n).abs()
@@ -379,13 +392,7 @@ fn implicit_scales(case: &ImplicitCase, extra_position: f64) -> FdScales {
     } else {
         f64::INFINITY
     };
-    FdScales {
-        h,
-        ell,
-        force_scale,
-        round_off,
-        band_ok: normal_kink >= 2.0 * h && friction_kink >= 2.0 * h && ell >= 1e-3,
-    }
+    FdScales::new(ell, force_scale, round_off, normal_kink.min(friction_kink))
 }
 
 fn evaluate(case: &ImplicitCase, y: &Vector3<f64>) -> ImplicitResponse {
@@ -1172,7 +1179,6 @@ fn smoothed_scales(case: &ImplicitCase) -> FdScales {
             + t_n
             + lambda_t
             + 2.0 * w.norm());
-    let h = ell * (round_off / (64.0 * force_scale)).cbrt().clamp(1e-8, 1e-3);
     let normal_edge =
         ((x - normal_width).abs().min((x + normal_width).abs())) / law.normal_penalty();
     let friction_edge = if friction > 0.0 {
@@ -1181,13 +1187,7 @@ fn smoothed_scales(case: &ImplicitCase) -> FdScales {
     } else {
         f64::INFINITY
     };
-    FdScales {
-        h,
-        ell,
-        force_scale,
-        round_off,
-        band_ok: normal_edge >= 2.0 * h && friction_edge >= 2.0 * h && ell >= 1e-3,
-    }
+    FdScales::new(ell, force_scale, round_off, normal_edge.min(friction_edge))
 }
 
 /// Eq. S1–S2 with the tangent of Eq. I5–I7 carried through the rounding
