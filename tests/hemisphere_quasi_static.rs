@@ -109,3 +109,82 @@ fn unstabilised_coarse_hemisphere_agrees() {
         "punch force {a} N, stabilised {b} N"
     );
 }
+
+/// Requirement (`docs/cases.md`, "Incomplete runs and exit codes"): a run
+/// that stops between two output depths writes the last converged state
+/// as one more output state, marked, next to the states it reached: its
+/// VTU files (listed in the series), its maps, its contour and its figures
+/// in `summary.json`.
+///
+/// The stop is made certain by geometry: a frictionless floor 6 mm below
+/// the die's face under the opening, which the punch pinches the ply
+/// against at 6 mm of its 20 mm (0.3 mm of ply between two rigid tools:
+/// the contact cannot converge). Outputs are due every 4 mm, so 6 mm lies
+/// between the first and the second.
+#[test]
+fn a_run_that_stops_between_outputs_writes_its_last_converged_state() {
+    let dir = TempDir::new().unwrap();
+    let case = coarse_case(
+        dir.path(),
+        &format!(
+            "{STEPS}\n[[tool]]\nname = \"floor\"\nshape = \"plane\"\n\
+             origin = [0.0, 0.0, -6.0]\naxis = [0.0, 0.0, 1.0]\nfriction = 0.0\n"
+        ),
+    );
+    let out = dir.path().join("out");
+    let summary = run_forming(&case, &out, Progress::Quiet).unwrap_or_else(|e| panic!("{e}"));
+    let RunStatus::Incomplete { load_reached, .. } = summary.status else {
+        panic!(
+            "expected the pinched ply to stop the run: {:?}",
+            summary.status
+        );
+    };
+    // Between the first output (0.2 of the programme) and the second.
+    assert!(
+        load_reached > 0.2 && load_reached < 0.4,
+        "stopped at {load_reached}"
+    );
+    let last_row = summary.history.last().unwrap();
+    assert_eq!(last_row.load, load_reached);
+    // States: the one output reached, then the last converged state.
+    let states = &summary.forming.states;
+    assert_eq!(states.len(), 2, "{states:?}");
+    assert_eq!(states[0].load, 0.2);
+    assert_eq!(states[1].load, load_reached);
+    assert_eq!(states[1].stroke, last_row.stroke);
+    for name in [
+        "vtu/ply_0002.vtu",
+        "vtu/ply-dic_0002.vtu",
+        "vtu/tool-punch_0002.vtu",
+        "maps/ply_0002.png",
+        "maps/ply-dic_0002.png",
+        "maps/ply-modes_0002.png",
+    ] {
+        assert!(out.join(name).is_file(), "{name} missing");
+    }
+    assert!(!out.join("vtu/ply_0003.vtu").exists());
+    let vtu = fs::read_to_string(out.join("vtu/ply_0002.vtu")).unwrap();
+    assert!(
+        vtu.contains(&format!(
+            "programme fraction {load_reached} (last converged state)"
+        )),
+        "the state is not marked"
+    );
+    let first = fs::read_to_string(out.join("vtu/ply_0001.vtu")).unwrap();
+    assert!(!first.contains("last converged"));
+    let pvd = fs::read_to_string(out.join("forming.pvd")).unwrap();
+    assert!(pvd.contains(&format!(
+        "timestep=\"{load_reached}\" group=\"\" part=\"0\" file=\"vtu/ply_0002.vtu\""
+    )));
+    // The contour at the last converged depth, after the one at 4 mm.
+    let contour = fs::read_to_string(out.join("outer_contour.csv")).unwrap();
+    let header = contour.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert!(
+        header.ends_with(&format!(
+            "y at punch displacement = {:.3} [mm]",
+            last_row.stroke
+        )),
+        "{header}"
+    );
+    assert_eq!(header.matches("x at punch displacement").count(), 2);
+}

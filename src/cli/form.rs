@@ -242,6 +242,10 @@ struct Sink<'a> {
     outline_states: Vec<OutlineState>,
     state_rows: Vec<FormingRow>,
     mode_states: Vec<ModeAreas>,
+    /// The last converged state when it is not an output state.
+    last: Option<LastState>,
+    /// The model has contact between plies (its fields go into the VTUs).
+    ply_contact: bool,
 }
 
 /// The area of each deformation mode of one ply at one output state.
@@ -352,7 +356,8 @@ impl Sink<'_> {
     }
 
     /// Writes the VTU files of the state `snapshot` at `load` if it is an
-    /// output state.
+    /// output state; otherwise keeps it as the last converged state, which
+    /// a run that stops early writes too ([`Sink::write_last_state`]).
     fn states(&mut self, load: f64, snapshot: &Snapshot, row: &FormingRow) {
         let due = self
             .case
@@ -360,26 +365,71 @@ impl Sink<'_> {
             .iter()
             .filter(|s| **s <= load + 1e-9)
             .count();
+        let contact: Vec<ContactFields> = (0..self.built.plies.len())
+            .map(|p| contact_fields(self.built, p, snapshot.model))
+            .collect();
         if due <= self.written_states {
+            self.last = Some(LastState {
+                load,
+                u: snapshot.u.to_vec(),
+                row: row.clone(),
+                contact,
+            });
             return;
         }
         self.written_states = due;
-        let index = due;
+        self.last = None;
+        self.write_state(due, load, snapshot.u, row, &contact, "");
+    }
+
+    /// Writes the last converged state as one more output state when it is
+    /// not one already: for a run that stopped early (incomplete or
+    /// interrupted), the state it stopped at (`docs/cases.md`, "Incomplete
+    /// runs and exit codes").
+    fn write_last_state(&mut self) {
+        if let Some(last) = self.last.take() {
+            let index = self.written_states + 1;
+            self.written_states = index;
+            self.write_state(
+                index,
+                last.load,
+                &last.u,
+                &last.row,
+                &last.contact,
+                LAST_STATE_NOTE,
+            );
+        }
+    }
+
+    /// Writes output state number `index` (`u` at `load`; `note` follows
+    /// the caption and the VTU files' load line).
+    fn write_state(
+        &mut self,
+        index: usize,
+        load: f64,
+        u: &[f64],
+        row: &FormingRow,
+        contact: &[ContactFields],
+        note: &str,
+    ) {
         let plies = self.built.plies.len();
         self.outline_states.push(OutlineState {
             load,
             stroke: row.stroke,
-            outlines: self.readout.outlines(snapshot.u),
+            outlines: self.readout.outlines(u),
         });
         self.state_rows.push(row.clone());
         let caption = match self.readout.stroke_tool {
-            Some(t) => format!("{} {:.1} mm", self.built.tools[t].spec.name, row.stroke),
-            None => format!("λ = {load:.3}"),
+            Some(t) => format!(
+                "{} {:.1} mm{note}",
+                self.built.tools[t].spec.name, row.stroke
+            ),
+            None => format!("λ = {load:.3}{note}"),
         };
         for (t, tool) in self.built.tools.iter().enumerate() {
             let name = format!("tool-{}_{index:04}.vtu", file_stem(&tool.spec.name));
             let path = self.out.join("vtu").join(&name);
-            let written = write_tool_vtu(&path, self.case, tool, snapshot.u[tool.dof], load);
+            let written = write_tool_vtu(&path, self.case, tool, u[tool.dof], load);
             // The series lists only the states that are there.
             if self.files.record(&path, written) {
                 self.pvd.push(PvdEntry {
@@ -410,8 +460,8 @@ impl Sink<'_> {
                 self.case,
                 self.built,
                 p,
-                snapshot,
-                load,
+                (u, &contact[p], self.ply_contact),
+                (load, note),
                 &caption,
                 self.files,
             );
@@ -438,6 +488,19 @@ impl Sink<'_> {
             }
         }
     }
+}
+
+/// What follows the caption and the load line of the last converged state
+/// of a run that stopped early.
+const LAST_STATE_NOTE: &str = " (last converged state)";
+
+/// A converged state that is not an output state: kept until the next one
+/// replaces it, to be written if the run stops there.
+struct LastState {
+    load: f64,
+    u: Vec<f64>,
+    row: FormingRow,
+    contact: Vec<ContactFields>,
 }
 
 /// A file-name stem from a ply or tool name.
@@ -577,14 +640,13 @@ fn write_ply_state(
     case: &FormingCase,
     built: &FormingModel,
     p: usize,
-    snapshot: &Snapshot,
-    load: f64,
+    (u, contact, ply_contact): (&[f64], &ContactFields, bool),
+    (load, note): (f64, &str),
     caption: &str,
     files: &mut Outputs,
 ) -> PlyState {
     let (path, dic_path, map_paths) = paths;
     let ply = &built.plies[p];
-    let u = snapshot.u;
     let offset = ply.node_offset;
     let count = ply.mesh.nodes.len();
     let points = ply.deformed_positions(u);
@@ -634,7 +696,6 @@ fn write_ply_state(
         ]
     };
     let columns = FieldColumns::new(&fields);
-    let contact = contact_fields(built, p, snapshot.model);
     let modes: Vec<u8> = fields
         .iter()
         .map(|f| crate::post::forming::deformation_mode(f.i8, f.i11))
@@ -674,12 +735,7 @@ fn write_ply_state(
             data: FieldData::Scalar(&contact.slip),
         },
     ];
-    if snapshot
-        .model
-        .terms_of::<crate::model::PlyContact>()
-        .next()
-        .is_some()
-    {
+    if ply_contact {
         point_fields.extend([
             Field {
                 name: "ply_contact_status",
@@ -705,7 +761,7 @@ fn write_ply_state(
                 "ncform: {} ({}), ply \"{}\"",
                 case.title, case.source, ply.name
             ),
-            format!("programme fraction {load}"),
+            format!("programme fraction {load}{note}"),
             format!("units: {UNITS}; E22 = I8-1, E_perp = I11-1 (paper Section 4)"),
             "S: second Piola-Kirchhoff stress [MPa] in the reference global x-y axes (xx, yy, xy)"
                 .into(),
@@ -734,7 +790,7 @@ fn write_ply_state(
                 "ncform: {} ({}), ply \"{}\", projected on the blank plane",
                 case.title, case.source, ply.name
             ),
-            format!("programme fraction {load}"),
+            format!("programme fraction {load}{note}"),
             format!("units: {UNITS}"),
             dic_note.into(),
         ],
@@ -839,6 +895,11 @@ fn run_built(
         outline_states: Vec::new(),
         state_rows: Vec::new(),
         mode_states: Vec::new(),
+        last: None,
+        ply_contact: model
+            .terms_of::<crate::model::PlyContact>()
+            .next()
+            .is_some(),
     };
     let report = match case.solver_kind {
         SolverKind::QuasiStatic => {
@@ -858,6 +919,9 @@ fn run_built(
         }
     };
     let output_clock = Instant::now();
+    if report.status != RunStatus::Complete {
+        sink.write_last_state();
+    }
     let path = out.join("forming.pvd");
     let written = write_pvd(
         &path,
