@@ -1126,7 +1126,7 @@ fn inp_msh_and_generated_meshes_give_the_same_force() {
 /// docs/explicit.md "The cross-check", on a coarse mesh: the 45° OAT run
 /// explicitly (default clamp speed, smooth step) gives the quasi-static
 /// clamp force and MDZ strains within 2 % RMS of their peaks over 0–80 mm
-/// (the criterion), with KE below 1 % of IE from 10 % of the stroke
+/// (the required criterion), with KE below 1 % of IE from 10 % of the stroke
 /// on, and writes the same outputs plus the energy history.
 #[test]
 fn explicit_45_degree_run_matches_the_quasi_static_one() {

@@ -443,7 +443,7 @@ fn capstan_ratios(summary: &FormingSummary) -> Vec<(f64, f64)> {
 /// cylinder; the discretisation moves it by the chord error of the
 /// faceted strip (`(h/R)²/24 ≈ 1e-4` of the wrap angle with h = 2.5 mm) and
 /// the augmented-Lagrangian slip (tolerance 1e-3 of the multipliers): the
-/// issue's 0.5 % is well above both.
+/// required 0.5 % is well above both.
 #[test]
 fn capstan_quasi_static_gives_exp_mu_theta() {
     let dir = TempDir::new().unwrap();

@@ -91,10 +91,10 @@ fn mirror_deviation(contour: &[([f64; 2], [f64; 2])], mirror: fn([f64; 2]) -> [f
 
 /// Requirement: the explicit [0°] run is quasi-static and balanced — the
 /// kinetic energy below 5 % of the internal energy from 10 % of the stroke
-/// on and the energy-balance error below 1 % (the limits, which the
+/// on and the energy-balance error below 1 % (the required limits, which the
 /// case's warning levels also use) — and no warning is raised; its outer
 /// contour is mirror-symmetric about both blank axes within 1 mm (the
-/// issue's limit; the bench is symmetric, the mesh's cut diagonals are not,
+/// required limit; the bench is symmetric, the mesh's cut diagonals are not,
 /// so the deviation measures the mesh's bias); the draw-in is positive at
 /// every edge midpoint and corner, and larger at the midpoints (the
 /// blank's corners are held in the flange) — and the written outputs exist.
@@ -151,7 +151,7 @@ fn hemisphere_0_explicit_is_quasi_static_balanced_and_symmetric() {
 }
 
 /// Requirement: the [45°] contour is mirror-symmetric about the rovings'
-/// diagonal x = y within 1 mm (the limit; the mesh, cut along that
+/// diagonal x = y within 1 mm (the required limit; the mesh, cut along that
 /// diagonal, has the symmetry too, so only round-off and the explicit
 /// dynamics' growth of asymmetry remain).
 #[test]
@@ -166,12 +166,12 @@ fn hemisphere_45_explicit_contour_is_symmetric_about_the_rovings() {
 }
 
 /// Requirement (two plies, ply–ply contact): the explicit [0°/90°] run
-/// completes with its energy balance within 1 % (the limit, the
+/// completes with its energy balance within 1 % (the required limit, the
 /// case's warning level; ply–ply contact's stored and dissipated energy
 /// in the balance), and both plies draw in at every edge midpoint.
 ///
 /// Not asserted, because it does not hold on a mesh this coarse: the
-/// issue's kinetic energy below 5 % of the internal energy. With the
+/// required kinetic energy below 5 % of the internal energy. With the
 /// shipped roving mass scaling the two plies burst on coarse meshes (KE/IE
 /// at most 23.4 % at 20 cells, 11.0 % at 24, 16.6 % at 30; the case's
 /// warning reports it) and stay below 5 % from 42 cells on (4.13 % at 42,
@@ -217,7 +217,7 @@ fn interpolate(curve: &[(f64, f64)], x: f64) -> f64 {
 
 /// The cross-check's measures of an explicit run `e` against a
 /// quasi-static run `q` (output folders `out_e`, `out_q`), asserted within
-/// the limits: the punch force within 3 % RMS of the peak, the
+/// the required limits: the punch force within 3 % RMS of the peak, the
 /// final outer contours within 1 mm RMS.
 struct Agreement {
     /// RMS over the quasi-static rows of the explicit punch force
@@ -267,7 +267,7 @@ fn assert_agreement(
 /// Requirement: the explicit [0°] run agrees with the quasi-static one —
 /// punch force within 3 % RMS of the peak force, outer contour within 1 mm
 /// RMS at the final depth, zone shear within 1.5° at every output depth
-/// (the limits for the paper-size cross-check, applied here to a
+/// (the required limits for the paper-size cross-check, applied here to a
 /// 12 × 12-cell blank pushed 20 mm, the depth the coarse quasi-static path
 /// reaches in seconds). The explicit punch follows the shipped programme's
 /// speed (depth 75 mm · (t / T)², T the case's `duration`), so it reaches
@@ -344,9 +344,9 @@ const FULL_DEPTH_SOLVER: &str =
 
 /// Requirement: the quasi-static path reaches the full depth (75 mm) with
 /// the settings above, its viscous dissipation below 1 % of the internal
-/// energy (the bound), and agrees with the explicit run of the
+/// energy (the required bound), and agrees with the explicit run of the
 /// same 12 × 12-cell blank: punch force within 3 % RMS of the peak, outer
-/// contour within 1 mm RMS at 75 mm (the limits). The zone shear
+/// contour within 1 mm RMS at 75 mm (the required limits). The zone shear
 /// angles are compared to 20 mm in
 /// `hemisphere_0_explicit_agrees_with_quasi_static`; deeper, a 20 mm zone
 /// window on 25 mm cells averages one or two elements, which the two paths

@@ -46,7 +46,7 @@ const STEPS: &str = "initial_increment = 0.05\nmax_increment = 0.1\n";
 /// Requirement (`docs/solver.md`, "Stabilisation"): with the automatic
 /// stabilisation the run reaches the depth, every history row reports the
 /// internal energy and the dissipated energy, and the dissipated energy
-/// stays below 1 % of the internal energy (the bound) with no
+/// stays below 1 % of the internal energy (the required bound) with no
 /// warning.
 ///
 /// Tolerance: the automatic factor targets a dissipation rate of `φ = 1e-4`

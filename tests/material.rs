@@ -40,7 +40,7 @@ fn all_sets() -> Vec<MaterialSpec> {
     ]
 }
 
-/// Requirement (issue 2, item 6): S = 2∂W/∂C and ℂ = 2∂S/∂C agree with finite
+/// Requirement: S = 2∂W/∂C and ℂ = 2∂S/∂C agree with finite
 /// differences, within the bound derived from the step size
 /// (`ncform::material::diagnostics`), at ≥ 10,000 random states per set that
 /// cover every branch of every term, both signs of I4 − 1 and I6, I8 ≷ 1,
@@ -577,7 +577,7 @@ fn default_with(replace: &str, with: &str) -> String {
     text.replacen(replace, with, 1)
 }
 
-/// Requirement (issue 2, item 3): unknown keys, missing keys and values
+/// Requirement: unknown keys, missing keys and values
 /// outside their physical range are rejected with a message naming the file,
 /// the key, the value and the allowed range.
 #[test]
@@ -671,7 +671,7 @@ fn bad_parameter_files_are_rejected_with_file_key_value_and_range() {
     assert!(invalid(&text).starts_with(&format!("user.toml:{line}: coupling.k_min = 1.5")));
 }
 
-/// Requirement (issue 2, item 3): the named sets exist, the default is the
+/// Requirement: the named sets exist, the default is the
 /// reconstruction, the printed set is Table D.1 exactly; integers are
 /// accepted where floats are expected; a missing file is reported.
 #[test]
@@ -725,7 +725,7 @@ fn named_sets_and_file_loading() {
     assert!(err.to_string().contains("schaefer2024-printed"));
 }
 
-/// Requirement (issue 2, item 4): `material eval` answers every good line,
+/// Requirement: `material eval` answers every good line,
 /// reports a bad line by its number on the error stream and as an error
 /// object in place, keeps full f64 precision, and counts the failures.
 #[test]
@@ -796,7 +796,7 @@ fn material_eval_answers_lines_and_reports_bad_ones() {
     assert_eq!(last["invariants"]["I11"].as_f64().unwrap(), i11);
 }
 
-/// Requirement (issue 2, item 5): `material curves` writes CSV files whose
+/// Requirement: `material curves` writes CSV files whose
 /// header states units and parameters, and PNG pictures; a non-UD-NCF set is
 /// refused with a message.
 #[test]

@@ -1,5 +1,5 @@
 //! Tests of the membrane element, assembly and the quasi-static Newton
-//! solver (issue 3): single element, finite-difference tangents, patch
+//! solver: single element, finite-difference tangents, patch
 //! tests, quadratic convergence, the pin-jointed-net limit.
 
 use nalgebra::{DVector, Matrix2, Matrix3x2, Rotation3, Vector2, Vector3};

@@ -222,9 +222,9 @@ fn mirror_deviation_about_x0(contour: &[([f64; 2], [f64; 2])]) -> f64 {
 /// Requirement: the coarse explicit [0°] run reaches the full 95 mm depth,
 /// quasi-static and balanced — the kinetic energy below 5 % of the
 /// internal energy from 10 % of the stroke on and the energy-balance error
-/// below 1 % of the external work (the limits, which the case's
+/// below 1 % of the external work (the required limits, which the case's
 /// warning levels also use) — without a warning; its outer contour is
-/// mirror-symmetric about x = 0 within 1 mm (the limit: the punch,
+/// mirror-symmetric about x = 0 within 1 mm (the required limit: the punch,
 /// the openings, the [0°] rovings and the mirrored mesh all have that
 /// symmetry, so only round-off grown by the explicit dynamics remains);
 /// the punch pulls the blank in at every edge midpoint. Measured on this

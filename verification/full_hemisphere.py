@@ -5,7 +5,7 @@ more on two cores): run by `bash verification/run.sh --full`, not in CI.
 
 * `symmetry` (paper size, cases as shipped, explicit): the [0°] contour at
   75 mm mirror-symmetric about both blank axes, the [45°] one about the
-  rovings' diagonal x = y, within 1 mm (the issue's limit).
+  rovings' diagonal x = y, within 1 mm (the required limit).
 * `cross-check` ([0°], 42 x 42 cells, explicit and quasi-static, the
   latter with the settings of docs/solver.md, "Forming: the hemisphere to
   full depth"): the quasi-static path does not reach 75 mm on this mesh
@@ -13,7 +13,7 @@ more on two cores): run by `bash verification/run.sh --full`, not in CI.
   the explicit punch force, interpolated at the quasi-static steps, within
   3 % RMS of the quasi-static peak force; the outer contours at the last
   quasi-static output depth within 1 mm RMS (node by node); the zone shear
-  angles within 1.5 deg at every output depth both reached (the issue's
+  angles within 1.5 deg at every output depth both reached (the required
   limits). The depth reached is reported.
 * `mesh` (with --mesh-study): the explicit [0°] bench at 42, 84 and 168
   cells per side (3,528, 14,112, 56,448 triangles), the roving mass length

@@ -9,7 +9,7 @@ ncform runs the same off-axis tension test twice: `cases/oat45.toml`
 areal mass 0.30 kg/m^2, the clamp moved along a smooth step at a mean
 100 mm/s; the same paper-size mesh of ~8,200 triangles). For a
 rate-independent law, a slow enough explicit run must reproduce the
-quasi-static curves. The issue's criteria:
+quasi-static curves. The criteria:
 
 * `force-rms`: the explicit clamp force, linearly interpolated to the
   quasi-static displacements in (0, 80] mm, within 2 % RMS of the

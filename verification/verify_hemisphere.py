@@ -28,7 +28,7 @@ from the deformed positions alone, sharing no code with ncform:
   recomputed I8 - 1 and I11 - 1 (beyond 1e-3), against the VTU field, and
   the zones' shares of mixed-modes 1 and 2 against `forming.csv`;
 * `symmetry`: the final contour mirror-symmetric about both blank axes
-  within 1 mm (the issue's limit);
+  within 1 mm (the required limit);
 * `energy`: KE/IE below 5 % from 10 % of the stroke on and the energy
   balance error below 1 % (energy.csv).
 

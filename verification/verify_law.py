@@ -60,7 +60,7 @@ Per state, norm-wise: |W - W_ref| <= 1e-8 max(|W_ref|, 1e-30),
 ||S - S_ref||_F <= 1e-8 ||S_ref||_F, ||C - C_ref||_F <= 1e-8 ||C_ref||_F;
 invariants component-wise to 1e-12 relative to max(|ref|, ||C||_F) (they are
 bilinear forms of C with unit vectors, so their round-off scales with ||C||).
-1e-8 is the requirement of the issue. Both sides evaluate sums of a few dozen
+1e-8 is the requirement. Both sides evaluate sums of a few dozen
 double-precision terms of moderate condition, so round-off is ~1e-14
 (the reference itself is checked against 40-digit mpmath evaluation to 1e-10:
 the law is ill-conditioned only through x = |I4 - 1| or |I6| near 0, where a
@@ -95,7 +95,7 @@ import numpy as np
 import sympy as sp
 
 SEED = 20240527
-REL_TOL = 1e-8          # the issue's requirement (see docstring)
+REL_TOL = 1e-8          # the requirement (see docstring)
 INV_TOL = 1e-12         # invariants, relative to max(|ref|, ||C||_F)
 SYM_TOL = 1e-12         # symmetry of ncform's own S and tangent, relative to norm
 BOUNDARY_MARGIN = 1e-6  # relative distance from any branch boundary

@@ -44,7 +44,7 @@ Checks and tolerances
   2000 random states; W = 0, S = 0 in the reference state.
 * `oat<angle>/ncform-run`: ncform finishes the case (exit 0, status complete).
 * `oat<angle>/force`: |F_ncform - F_ref| <= 1 % of F_ref at every output
-  displacement. 1 % is the requirement of the issue; since both codes solve the
+  displacement. 1 % is the requirement; since both codes solve the
   same discrete problem the expected difference is only the two solvers'
   convergence tolerances (typically < 1e-4 relative), so 1 % is generous and
   an error in any term of the law that matters for the test (e.g. W6 off by 2 %)
@@ -85,7 +85,7 @@ sys.path.insert(0, HERE)
 
 from verify_law import Harness  # noqa: E402  (the PASS/FAIL protocol only)
 
-FORCE_REL_TOL = 0.01   # issue requirement: force within 1 %
+FORCE_REL_TOL = 0.01   # requirement: force within 1 %
 FORCE_TIGHT_TOL = 1e-4 # same discrete problem: only the solvers' tolerances differ (see docstring)
 MDZ_REL_TOL = 0.01     # same requirement applied to the MDZ mean shear angle
 LAW_FD_TOL = 1e-6      # law self-check: S vs central differences of W
@@ -576,7 +576,7 @@ class CaseRun:
     def check_force(self):
         present, worst, lines = self.force_table()
         lines = lines + [f"max relative difference {worst:.3e} "
-                         f"(tol {FORCE_REL_TOL:g}, issue requirement)"]
+                         f"(tol {FORCE_REL_TOL:g}, the requirement)"]
         return present and worst <= FORCE_REL_TOL, "\n".join(lines)
 
     def check_force_tight(self):
@@ -649,7 +649,7 @@ def main():
                cr.run_ncform)
         hx.run(f"{name}/force",
                f"clamp force within {FORCE_REL_TOL:.0%} of the independent scikit-fem solution "
-               f"at every output displacement, {th:g} deg (issue requirement)",
+               f"at every output displacement, {th:g} deg (the requirement)",
                cr.check_force)
         hx.run(f"{name}/force-same-discrete-problem",
                f"clamp force within {FORCE_TIGHT_TOL:g} (relative) of the independent solution on the "

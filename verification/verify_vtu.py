@@ -49,7 +49,7 @@ in each `oat.pvd` with meshio, and checks per case:
   all to 1e-9, from the recomputed invariants (docs/theory.md, "Strain measures").
 * `law-fields` (beyond the brief, cheap): k11, energy_density and S equal the
   numpy law of verify_oat.py (docs/theory.md) at the recomputed C, to 1e-8
-  relative -- the law requirement of the issue -- plus a round-off floor
+  relative -- the law requirement -- plus a round-off floor
   ||tangent|| * dC, dC = 8 eps max|x| / (shortest edge) the error of C from
   coordinates written in f64 (the roving modulus 1000 MPa amplifies it);
   energy_density >= 0.
@@ -94,7 +94,7 @@ from verify_oat import (CASES, LENGTH, WIDTH, law, params_schaefer2024,  # noqa:
                         read_force_csv, read_pvd, run_case, tangent_fd)
 
 INV_TOL = 1e-9       # brief: invariants and strain measures to 1e-9 relative
-LAW_TOL = 1e-8       # law requirement of the issue (as in verify_law.py)
+LAW_TOL = 1e-8       # law requirement (as in verify_law.py)
 REF_TOL = 1e-12      # reference coordinates / clamp values: round-off only
 MDZ_SIZE = 20.0      # docs/cases.md (ncform's default; not set in the case files)
 EPS = np.finfo(float).eps
