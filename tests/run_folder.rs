@@ -469,7 +469,7 @@ fn last_row(path: &Path) -> Vec<f64> {
 /// middle of a run (explicit: stopped within an increment; quasi-static:
 /// before the next load step or Newton iteration) exits with 4, and
 /// status.json and summary.json say interrupted at the last state, which is
-/// the last row of the written history.
+/// the last row of the written history and the last VTU state.
 #[test]
 fn a_signal_stops_the_run_and_the_results_up_to_there_are_written() {
     let dir = TempDir::new().unwrap();
@@ -506,6 +506,22 @@ fn a_signal_stops_the_run_and_the_results_up_to_there_are_written() {
         let row = last_row(&out.join("force_displacement.csv"));
         assert_eq!(row[0], reached, "the last history row is the state reached");
         assert!(row[1].is_finite() && row[1] > 0.0, "{row:?}");
+        // The state reached is written as the last VTU state, marked
+        // (docs/cases.md, "Incomplete runs and exit codes"), unless it is
+        // the output state at 2.5 mm.
+        if reached != 2.5 {
+            let name = format!("oat_d{reached:07.3}.vtu");
+            let vtu = fs::read_to_string(out.join("vtu").join(&name))
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(
+                vtu.contains(&format!(
+                    "clamp displacement {reached} mm (last converged state)"
+                )),
+                "{name} is not marked"
+            );
+            let pvd = fs::read_to_string(out.join("oat.pvd")).unwrap();
+            assert!(pvd.contains(&format!("file=\"vtu/{name}\"")), "{pvd}");
+        }
         assert!(out.join("force_displacement.png").is_file());
         assert_manifest_is_the_folder(&out);
     }

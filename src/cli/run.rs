@@ -257,7 +257,7 @@ fn write_state_vtu(
     built: &OatModel,
     u: &[f64],
     fields: &[ElementFields],
-    displacement: f64,
+    (displacement, note): (f64, &str),
 ) -> Result<(), String> {
     let mesh = &built.mesh;
     let points: Vec<[f64; 3]> = mesh
@@ -290,13 +290,17 @@ fn write_state_vtu(
         },
         comment: vec![
             format!("ncform: {} ({})", case.title, case.source),
-            format!("clamp displacement {displacement} mm"),
+            format!("clamp displacement {displacement} mm{note}"),
             "units: mm, N, MPa; shear_angle_deg in degrees; E22 = I8-1, E_perp = I11-1 (paper Section 4)".into(),
             "S: second Piola-Kirchhoff stress [MPa] in global x-y axes (xx, yy, xy); zone: 0 = A, 1 = B, 2 = C; mdz: 1 in the main deformation zone".into(),
         ],
     };
     write_vtu(path, &piece).map_err(|e| io_err(path, e))
 }
+
+/// What follows the displacement in the header of the last converged
+/// state's VTU of a run that stopped early.
+const LAST_STATE_NOTE: &str = " (last converged state)";
 
 /// The state kept for the contour pictures.
 struct Snapshot {
@@ -315,6 +319,9 @@ struct OutputSink<'a> {
     history: Vec<HistoryRow>,
     pvd: Vec<PvdEntry>,
     snapshot: Option<Snapshot>,
+    /// The last recorded state when it is not a VTU state: its
+    /// displacement and `u`, written too if the run stops there.
+    last: Option<(f64, Vec<f64>)>,
     seconds: f64,
     tolerance: f64,
 }
@@ -329,6 +336,7 @@ impl<'a> OutputSink<'a> {
             history: Vec::new(),
             pvd: Vec::new(),
             snapshot: None,
+            last: None,
             seconds: 0.0,
             tolerance: 1e-9 * case.displacement,
         }
@@ -368,16 +376,15 @@ impl<'a> OutputSink<'a> {
             .iter()
             .any(|d| (d - load).abs() <= self.tolerance)
         {
-            let name = format!("oat_d{load:07.3}.vtu");
-            let path = self.out.join("vtu").join(&name);
-            let written = write_state_vtu(&path, case, built, u, &fields, load);
-            // The series lists only the states that are there.
-            if self.files.record(&path, written) {
-                self.pvd.push(PvdEntry {
-                    time: load,
-                    file: format!("vtu/{name}"),
-                    part: 0,
-                });
+            self.write_state(load, u, &fields, "");
+            self.last = None;
+        } else {
+            match &mut self.last {
+                Some((d, kept)) if kept.len() == u.len() => {
+                    *d = load;
+                    kept.copy_from_slice(u);
+                }
+                last => *last = Some((load, u.to_vec())),
             }
         }
         if load <= case.contour_displacement + self.tolerance {
@@ -390,10 +397,36 @@ impl<'a> OutputSink<'a> {
         self.seconds += start.elapsed().as_secs_f64();
     }
 
+    /// The VTU of the state `u` at `load` (`note` after the displacement
+    /// in its header), listed in the series if written.
+    fn write_state(&mut self, load: f64, u: &[f64], fields: &[ElementFields], note: &str) {
+        let name = format!("oat_d{load:07.3}.vtu");
+        let path = self.out.join("vtu").join(&name);
+        let written = write_state_vtu(&path, self.case, self.built, u, fields, (load, note));
+        // The series lists only the states that are there.
+        if self.files.record(&path, written) {
+            self.pvd.push(PvdEntry {
+                time: load,
+                file: format!("vtu/{name}"),
+                part: 0,
+            });
+        }
+    }
+
     /// Writes the PVD, the histories and the contour maps, each attempted
-    /// whatever became of the others.
+    /// whatever became of the others; a run that stopped early first writes
+    /// its last recorded state's VTU when that is not a VTU state already
+    /// (`docs/cases.md`, "Incomplete runs and exit codes").
     fn finish(&mut self, status: &RunStatus, solver: SolverKind) {
         let start = Instant::now();
+        if *status != RunStatus::Complete
+            && let Some((load, u)) = self.last.take()
+        {
+            // The state was recorded, so its fields evaluate.
+            if let Ok(fields) = element_fields(&self.built.model, &u) {
+                self.write_state(load, &u, &fields, LAST_STATE_NOTE);
+            }
+        }
         let case = self.case;
         let out = self.out.clone();
         let path = out.join("oat.pvd");
