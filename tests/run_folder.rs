@@ -510,7 +510,7 @@ fn a_signal_stops_the_run_and_the_results_up_to_there_are_written() {
         // (docs/cases.md, "Incomplete runs and exit codes"), unless it is
         // the output state at 2.5 mm.
         if reached != 2.5 {
-            let name = format!("oat_d{reached:07.3}.vtu");
+            let name = format!("oat_d{reached:07.3}-last.vtu");
             let vtu = fs::read_to_string(out.join("vtu").join(&name))
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(

@@ -376,7 +376,7 @@ impl<'a> OutputSink<'a> {
             .iter()
             .any(|d| (d - load).abs() <= self.tolerance)
         {
-            self.write_state(load, u, &fields, "");
+            self.write_state(load, u, &fields, false);
             self.last = None;
         } else {
             match &mut self.last {
@@ -397,10 +397,17 @@ impl<'a> OutputSink<'a> {
         self.seconds += start.elapsed().as_secs_f64();
     }
 
-    /// The VTU of the state `u` at `load` (`note` after the displacement
-    /// in its header), listed in the series if written.
-    fn write_state(&mut self, load: f64, u: &[f64], fields: &[ElementFields], note: &str) {
-        let name = format!("oat_d{load:07.3}.vtu");
+    /// The VTU of the state `u` at `load`, listed in the series if written:
+    /// `oat_dNNN.NNN.vtu`, or with `last`, `oat_dNNN.NNN-last.vtu` marked
+    /// [`LAST_STATE_NOTE`] in its header (its own name: the displacement of
+    /// a last step shorter than 0.5 µm would print as the output state's).
+    fn write_state(&mut self, load: f64, u: &[f64], fields: &[ElementFields], last: bool) {
+        let (suffix, note) = if last {
+            ("-last", LAST_STATE_NOTE)
+        } else {
+            ("", "")
+        };
+        let name = format!("oat_d{load:07.3}{suffix}.vtu");
         let path = self.out.join("vtu").join(&name);
         let written = write_state_vtu(&path, self.case, self.built, u, fields, (load, note));
         // The series lists only the states that are there.
@@ -424,7 +431,7 @@ impl<'a> OutputSink<'a> {
         {
             // The state was recorded, so its fields evaluate.
             if let Ok(fields) = element_fields(&self.built.model, &u) {
-                self.write_state(load, &u, &fields, LAST_STATE_NOTE);
+                self.write_state(load, &u, &fields, true);
             }
         }
         let case = self.case;
