@@ -988,6 +988,61 @@ fn a_run_that_fails_at_once_is_marked_incomplete() {
     assert!(attempted > 0.0 && attempted <= 5.0);
     assert_eq!(summary.steps, 0);
     assert!(summary.forces.is_empty());
+    check_largest_residual(&summary, &case);
+}
+
+/// The reason of a run stopped by "no convergence" names the largest
+/// residual component and where it is (docs/solver.md, "Newton"): a node
+/// of the specimen by its mesh label, at its reference position, which
+/// must be that node's (to the two decimals printed), with a value between
+/// the residual norm over √(3 × nodes) and the norm itself (the bounds of
+/// the largest component of a vector by its 2-norm; 3 × nodes is at least
+/// the number of free dofs).
+fn check_largest_residual(summary: &RunSummary, case: &OatCase) {
+    let RunStatus::Incomplete { reason, .. } = &summary.status else {
+        panic!("{:?}", summary.status);
+    };
+    let number = |text: &str| -> f64 {
+        let end = text
+            .find(|c: char| !(c.is_ascii_digit() || "+-.e".contains(c)))
+            .unwrap_or(text.len());
+        text[..end]
+            .parse()
+            .unwrap_or_else(|_| panic!("a number at `{text}` in {reason}"))
+    };
+    let after = |key: &str| {
+        &reason[reason
+            .find(key)
+            .unwrap_or_else(|| panic!("`{key}` in {reason}"))
+            + key.len()..]
+    };
+    let residual = number(after("(residual "));
+    let largest = number(after("largest residual "));
+    let label = number(after(" at node ")) as i64;
+    let position = after("(reference (");
+    let coordinates: Vec<f64> = position[..position.find(')').unwrap()]
+        .split(", ")
+        .map(number)
+        .collect();
+    assert!(after(" at node ").contains("of the specimen"), "{reason}");
+    let built = case.build().unwrap();
+    let node = (0..built.mesh.nodes.len())
+        .find(|&n| built.mesh.node_label(n) == label)
+        .unwrap_or_else(|| panic!("no node {label}: {reason}"));
+    let x = built.mesh.nodes[node];
+    for (k, c) in coordinates.iter().enumerate() {
+        assert!(
+            (c - x[k]).abs() <= 0.005 + 1e-12,
+            "node {label} is at {x:?}: {reason}"
+        );
+    }
+    let free = 3 * built.mesh.nodes.len();
+    // The printed values carry four significant digits: 1e-3 relative.
+    assert!(largest <= residual * (1.0 + 1e-3), "{reason}");
+    assert!(
+        largest >= residual / (free as f64).sqrt() * (1.0 - 1e-3),
+        "{reason}"
+    );
 }
 
 /// docs/cases.md "Incomplete runs and exit codes": a solve that fails midway

@@ -660,3 +660,38 @@ fn plus_and_minus_45_give_the_same_force_curve() {
         assert!((a - b).abs() <= 1e-5 * a.abs(), "+45°: {a} N, −45°: {b} N");
     }
 }
+
+/// `Model::describe_dof` names a node of a group by its label, its group
+/// and its reference position, a node outside the groups by its index, and
+/// an extra dof by its name: the words of a "no convergence" message
+/// (docs/solver.md, "Newton").
+#[test]
+fn a_dof_is_described_by_its_group_label_and_position() {
+    let mut model = Model::new(5);
+    model.node_groups.push(ncform::model::NodeGroup {
+        name: "ply \"lower\"".into(),
+        first: 0,
+        labels: vec![11, 12],
+        reference: vec![Vector3::new(0.0, 0.0, 0.15), Vector3::new(10.0, -2.5, 0.15)],
+    });
+    model.node_groups.push(ncform::model::NodeGroup {
+        name: "ply \"upper\"".into(),
+        first: 2,
+        labels: vec![7, 8],
+        reference: vec![Vector3::new(1.0, 2.0, 0.45), Vector3::new(-3.5, 4.0, 0.45)],
+    });
+    let punch = model.add_extra("punch");
+    assert_eq!(
+        model.describe_dof(4),
+        "node 12 of ply \"lower\" (reference (10.00, -2.50, 0.15) mm), y"
+    );
+    assert_eq!(
+        model.describe_dof(3 * 3 + 2),
+        "node 8 of ply \"upper\" (reference (-3.50, 4.00, 0.45) mm), z"
+    );
+    assert_eq!(model.describe_dof(3 * 4), "node 5 (index), x");
+    assert_eq!(
+        model.describe_dof(model.extra_dof(punch)),
+        "the punch's dof"
+    );
+}

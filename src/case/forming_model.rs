@@ -420,6 +420,12 @@ impl FormingCase {
                     dirichlet.push(Dirichlet::fixed(offset + n, k));
                 }
             }
+            model.node_groups.push(crate::model::NodeGroup {
+                name: format!("ply \"{}\"", spec.name),
+                first: offset,
+                labels: (0..mesh.nodes.len()).map(|n| mesh.node_label(n)).collect(),
+                reference: mesh.nodes.clone(),
+            });
             plies.push(BuiltPly {
                 name: spec.name.clone(),
                 nodal_area: mesh.nodal_areas(),

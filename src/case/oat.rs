@@ -597,7 +597,7 @@ impl OatCase {
     /// triangles turning over in the plane (the test is in-plane), with the
     /// case's density.
     pub fn solver_model(&self, built: &OatModel) -> Model {
-        Model::membrane(
+        let mut model = Model::membrane(
             built.model.clone(),
             MembraneOptions {
                 check_inversion: true,
@@ -605,7 +605,15 @@ impl OatCase {
                 roving_mass_length: self.explicit.roving_mass_length,
                 roving_mass_coupling: self.explicit.roving_mass_coupling,
             },
-        )
+        );
+        // Messages name the specimen's nodes by their mesh labels.
+        for group in &mut model.node_groups {
+            group.name = "the specimen".into();
+            group.labels = (0..built.mesh.nodes.len())
+                .map(|n| built.mesh.node_label(n))
+                .collect();
+        }
+        model
     }
 
     /// Does the line through `p` along `d` (both ways) end on a clamp edge

@@ -30,6 +30,21 @@ pub struct ExtraDof {
     pub name: String,
 }
 
+/// A run of consecutive nodes that a user knows by name (a ply, the OAT's
+/// membrane): their labels and reference positions, for messages that say
+/// where something happened ([`Model::describe_dof`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeGroup {
+    /// What the nodes are, as a message names them (`ply "ply-0"`).
+    pub name: String,
+    /// The model's index of the group's first node.
+    pub first: usize,
+    /// The nodes' external labels (a mesh file's, else 1-based indices).
+    pub labels: Vec<i64>,
+    /// The nodes' reference positions \[mm\].
+    pub reference: Vec<nalgebra::Vector3<f64>>,
+}
+
 /// Nodes, extra dofs and force terms.
 pub struct Model {
     /// Number of nodes (dofs `3 n + k`, `k = 0, 1, 2` for x, y, z).
@@ -38,6 +53,8 @@ pub struct Model {
     pub extras: Vec<ExtraDof>,
     /// The force terms, evaluated in this order.
     pub terms: Vec<Box<dyn Term>>,
+    /// Named groups of nodes, for messages (may be empty).
+    pub node_groups: Vec<NodeGroup>,
 }
 
 impl Model {
@@ -47,14 +64,52 @@ impl Model {
             nodes,
             extras: Vec::new(),
             terms: Vec::new(),
+            node_groups: Vec::new(),
         }
     }
 
-    /// A model made of one membrane (the off-axis tension test).
+    /// A model made of one membrane (the off-axis tension test); its nodes
+    /// are one group, "the membrane", labelled by 1-based index.
     pub fn membrane(membrane: MembraneModel, options: MembraneOptions) -> Self {
         let mut model = Self::new(membrane.nodes.len());
+        model.node_groups.push(NodeGroup {
+            name: "the membrane".into(),
+            first: 0,
+            labels: (1..=membrane.nodes.len() as i64).collect(),
+            reference: membrane.nodes.clone(),
+        });
         model.add(MembraneTerm::new("membrane", membrane, options));
         model
+    }
+
+    /// Where dof `dof` is, for a message: `node 568 of ply "ply"
+    /// (reference (-85.71, -57.14, 0.15) mm), y` for a node of a named group,
+    /// `node 12 (index), x` for another node, `the blankholder's dof` for an
+    /// extra dof.
+    pub fn describe_dof(&self, dof: usize) -> String {
+        const AXES: [&str; 3] = ["x", "y", "z"];
+        if dof >= 3 * self.nodes {
+            return match self.extras.get(dof - 3 * self.nodes) {
+                Some(extra) => format!("the {}'s dof", extra.name),
+                None => format!("dof {dof}"),
+            };
+        }
+        let (node, axis) = (dof / 3, AXES[dof % 3]);
+        let group = self
+            .node_groups
+            .iter()
+            .find(|g| node >= g.first && node - g.first < g.labels.len());
+        match group {
+            Some(g) => {
+                let local = node - g.first;
+                let x = g.reference.get(local).copied().unwrap_or_default();
+                format!(
+                    "node {} of {} (reference ({:.2}, {:.2}, {:.2}) mm), {axis}",
+                    g.labels[local], g.name, x.x, x.y, x.z
+                )
+            }
+            None => format!("node {} (index), {axis}", node + 1),
+        }
     }
 
     /// Adds an extra dof; returns its index among the extras.

@@ -299,12 +299,16 @@ enum AttemptError {
     #[error("{0}")]
     Linear(#[from] LinearSolverError),
     #[error(
-        "no convergence in {iterations} iterations (residual {residual:.3e} N, reaction {reaction:.3e} N)"
+        "no convergence in {iterations} iterations (residual {residual:.3e} N, reaction {reaction:.3e} N; largest residual {largest:.3e} N at {at})"
     )]
     NoConvergence {
         iterations: usize,
         residual: f64,
         reaction: f64,
+        /// The largest residual component \[N\] and where it is
+        /// ([`Model::describe_dof`]).
+        largest: f64,
+        at: String,
     },
     #[error("no descent direction even with a shifted tangent")]
     NoDescent,
@@ -665,10 +669,15 @@ impl Newton<'_> {
                 return Ok((it, history, energy));
             }
             if it == self.params.max_iterations {
+                let (worst, largest) = r.iter().enumerate().fold((0, 0.0_f64), |(k, m), (j, v)| {
+                    if v.abs() > m { (j, v.abs()) } else { (k, m) }
+                });
                 return Err(AttemptError::NoConvergence {
                     iterations: it,
                     residual,
                     reaction,
+                    largest,
+                    at: self.model.describe_dof(self.assembler.dofs.free[worst]),
                 });
             }
             if self.params.cancel.is_cancelled() {
