@@ -120,7 +120,8 @@ fn unstabilised_coarse_hemisphere_agrees() {
 /// the die's face under the opening, which the punch pinches the ply
 /// against at 6 mm of its 20 mm (0.3 mm of ply between two rigid tools:
 /// the contact cannot converge). Outputs are due every 4 mm, so 6 mm lies
-/// between the first and the second.
+/// between the first and the second. The reason names the node pinched
+/// hardest.
 #[test]
 fn a_run_that_stops_between_outputs_writes_its_last_converged_state() {
     let dir = TempDir::new().unwrap();
@@ -133,12 +134,25 @@ fn a_run_that_stops_between_outputs_writes_its_last_converged_state() {
     );
     let out = dir.path().join("out");
     let summary = run_forming(&case, &out, Progress::Quiet).unwrap_or_else(|e| panic!("{e}"));
-    let RunStatus::Incomplete { load_reached, .. } = summary.status else {
+    let RunStatus::Incomplete {
+        load_reached,
+        ref reason,
+        ..
+    } = summary.status
+    else {
         panic!(
             "expected the pinched ply to stop the run: {:?}",
             summary.status
         );
     };
+    // The reason says where: the ply is pinched hardest on the punch's
+    // axis, at the blank's centre node (docs/solver.md, "Newton").
+    assert!(
+        reason.contains("augmentations (penetration")
+            && reason.contains(" at node ")
+            && reason.contains("of ply \"ply\" (reference (0.00, 0.00, 0.15) mm)"),
+        "{reason}"
+    );
     // Between the first output (0.2 of the programme) and the second.
     assert!(
         load_reached > 0.2 && load_reached < 0.4,

@@ -467,8 +467,18 @@ impl Term for ToolContact {
         }
         let mut norms = AugmentationNorms::default();
         let (mut active, mut slipping) = (0, 0);
-        for (s, r) in self.implicit.iter_mut().zip(&self.responses) {
-            norms.add(&s.augment(r));
+        let mut deepest = None;
+        for ((s, r), &node) in self
+            .implicit
+            .iter_mut()
+            .zip(&self.responses)
+            .zip(&self.nodes)
+        {
+            let report = s.augment(r);
+            if report.penetration > norms.max_penetration {
+                deepest = Some(node);
+            }
+            norms.add(&report);
             match r.status {
                 ContactStatus::Open => {}
                 ContactStatus::Stick => active += 1,
@@ -490,6 +500,7 @@ impl Term for ToolContact {
             multiplier_change: change,
             active,
             slipping,
+            deepest,
         })
     }
 

@@ -94,7 +94,13 @@ impl Model {
                 None => format!("dof {dof}"),
             };
         }
-        let (node, axis) = (dof / 3, AXES[dof % 3]);
+        format!("{}, {}", self.describe_node(dof / 3), AXES[dof % 3])
+    }
+
+    /// Where node `node` is, for a message: `node 568 of ply "ply"
+    /// (reference (-85.71, -57.14, 0.15) mm)` for a node of a named group,
+    /// `node 12 (index)` for another.
+    pub fn describe_node(&self, node: usize) -> String {
         let group = self
             .node_groups
             .iter()
@@ -104,11 +110,11 @@ impl Model {
                 let local = node - g.first;
                 let x = g.reference.get(local).copied().unwrap_or_default();
                 format!(
-                    "node {} of {} (reference ({:.2}, {:.2}, {:.2}) mm), {axis}",
+                    "node {} of {} (reference ({:.2}, {:.2}, {:.2}) mm)",
                     g.labels[local], g.name, x.x, x.y, x.z
                 )
             }
-            None => format!("node {} (index), {axis}", node + 1),
+            None => format!("node {} (index)", node + 1),
         }
     }
 

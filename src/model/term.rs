@@ -104,17 +104,27 @@ pub struct Augmentation {
     pub active: usize,
     /// Of those, pairs in slip.
     pub slipping: usize,
+    /// The model's node of the largest penetration, if any node
+    /// penetrates (for messages: [`crate::model::Model::describe_node`]).
+    #[serde(skip)]
+    pub deepest: Option<usize>,
 }
 
 impl Augmentation {
     /// Combines the reports of two terms: converged only if both are.
     pub fn merge(self, other: Self) -> Self {
+        let deepest = if other.max_penetration > self.max_penetration {
+            other.deepest
+        } else {
+            self.deepest
+        };
         Self {
             converged: self.converged && other.converged,
             max_penetration: self.max_penetration.max(other.max_penetration),
             multiplier_change: self.multiplier_change.max(other.multiplier_change),
             active: self.active + other.active,
             slipping: self.slipping + other.slipping,
+            deepest,
         }
     }
 }

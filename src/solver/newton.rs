@@ -325,11 +325,13 @@ enum AttemptError {
     #[error("the line search found no acceptable step")]
     LineSearch,
     #[error(
-        "the contact multipliers did not converge in {augmentations} augmentations (penetration {penetration:.3e} mm, multiplier change {change:.3e})"
+        "the contact multipliers did not converge in {augmentations} augmentations (penetration {penetration:.3e} mm{at}, multiplier change {change:.3e})"
     )]
     Augmentation {
         augmentations: usize,
         penetration: f64,
+        /// ` at <node>` of the largest penetration, or empty.
+        at: String,
         change: f64,
     },
     #[error("interrupted")]
@@ -754,6 +756,10 @@ impl Newton<'_> {
                     return Err(AttemptError::Augmentation {
                         augmentations,
                         penetration: r.max_penetration,
+                        at: r
+                            .deepest
+                            .map(|n| format!(" at {}", self.model.describe_node(n)))
+                            .unwrap_or_default(),
                         change: r.multiplier_change,
                     });
                 }
