@@ -388,3 +388,58 @@ fn hemisphere_0_quasi_static_reaches_full_depth_and_agrees_with_explicit() {
         100.0 * rms / peak
     );
 }
+
+/// Requirement (`docs/cases.md`, "Forming outputs"): an explicit run
+/// stopped between two outputs — here by the cancel token, as SIGINT
+/// stops it, once the first of two output states is on disk — writes the
+/// state it reached as one more output state, marked, with its maps, and
+/// as the last state of the contour and of `summary.json`.
+#[test]
+fn an_interrupted_explicit_run_writes_the_state_it_reached() {
+    let case = coarse(
+        "hemisphere-0.toml",
+        COARSE_CELLS,
+        &[("states = 5", "states = 2")],
+    );
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let cancel = ncform::solver::CancelToken::new();
+    let summary = std::thread::scope(|scope| {
+        let run = scope.spawn(|| {
+            ncform::cli::form::run_forming_with(&case, &out, Progress::Quiet, &cancel)
+                .unwrap_or_else(|e| panic!("{e}"))
+        });
+        // The first output state (half the stroke) is written during the
+        // solve; the second is half a run later (1.5 s on the 2-core
+        // machine), against a poll of 1 ms: the token stops the run
+        // between the two unless the poll is starved for that long.
+        let first = out.join("vtu").join("ply_0001.vtu");
+        while !first.exists() && !run.is_finished() {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        cancel.cancel();
+        run.join().unwrap()
+    });
+    let RunStatus::Interrupted { load_reached } = summary.status else {
+        panic!("expected an interrupted run: {:?}", summary.status);
+    };
+    assert!(
+        load_reached > 0.5 && load_reached < 1.0,
+        "stopped at {load_reached}"
+    );
+    let states = &summary.forming.states;
+    assert_eq!(states.len(), 2, "{states:?}");
+    assert_eq!(states[1].load, load_reached);
+    assert_eq!(
+        states[1].stroke,
+        summary.history.last().unwrap().stroke,
+        "the last state is the last history row"
+    );
+    let vtu = fs::read_to_string(out.join("vtu/ply_0002.vtu")).unwrap();
+    assert!(vtu.contains(&format!(
+        "programme fraction {load_reached} (last converged state)"
+    )));
+    for map in ["ply_0002.png", "ply-dic_0002.png", "ply-modes_0002.png"] {
+        assert!(out.join("maps").join(map).is_file(), "{map}");
+    }
+}
