@@ -420,12 +420,11 @@ impl FormingCase {
                     dirichlet.push(Dirichlet::fixed(offset + n, k));
                 }
             }
-            model.node_groups.push(crate::model::NodeGroup {
-                name: format!("ply \"{}\"", spec.name),
-                first: offset,
-                labels: (0..mesh.nodes.len()).map(|n| mesh.node_label(n)).collect(),
-                reference: mesh.nodes.clone(),
-            });
+            model.node_groups.push(crate::model::NodeGroup::of_mesh(
+                format!("ply \"{}\"", spec.name),
+                offset,
+                &mesh,
+            ));
             plies.push(BuiltPly {
                 name: spec.name.clone(),
                 nodal_area: mesh.nodal_areas(),

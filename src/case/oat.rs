@@ -607,12 +607,11 @@ impl OatCase {
             },
         );
         // Messages name the specimen's nodes by their mesh labels.
-        for group in &mut model.node_groups {
-            group.name = "the specimen".into();
-            group.labels = (0..built.mesh.nodes.len())
-                .map(|n| built.mesh.node_label(n))
-                .collect();
-        }
+        model.node_groups.push(crate::model::NodeGroup::of_mesh(
+            "the specimen",
+            0,
+            &built.mesh,
+        ));
         model
     }
 

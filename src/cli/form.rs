@@ -396,7 +396,7 @@ impl Sink<'_> {
                 &last.u,
                 &last.row,
                 &last.contact,
-                LAST_STATE_NOTE,
+                super::LAST_STATE_NOTE,
             );
         }
     }
@@ -489,10 +489,6 @@ impl Sink<'_> {
         }
     }
 }
-
-/// What follows the caption and the load line of the last converged state
-/// of a run that stopped early.
-const LAST_STATE_NOTE: &str = " (last converged state)";
 
 /// A converged state that is not an output state: kept until the next one
 /// replaces it, to be written if the run stops there.

@@ -20,6 +20,11 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
     format!("{}: {e}", path.display())
 }
 
+/// What follows the load in the caption and the header of the last
+/// converged state that a run which stopped early writes as one more
+/// output state (`docs/cases.md`, "Incomplete runs and exit codes").
+pub(crate) const LAST_STATE_NOTE: &str = " (last converged state)";
+
 /// `status: complete`, or where an incomplete run stopped and why, or
 /// where an interrupted one stopped, with the load reached and the load
 /// attempted written by `reached` and `attempted` (the output files'

@@ -298,10 +298,6 @@ fn write_state_vtu(
     write_vtu(path, &piece).map_err(|e| io_err(path, e))
 }
 
-/// What follows the displacement in the header of the last converged
-/// state's VTU of a run that stopped early.
-const LAST_STATE_NOTE: &str = " (last converged state)";
-
 /// The state kept for the contour pictures.
 struct Snapshot {
     displacement: f64,
@@ -399,11 +395,11 @@ impl<'a> OutputSink<'a> {
 
     /// The VTU of the state `u` at `load`, listed in the series if written:
     /// `oat_dNNN.NNN.vtu`, or with `last`, `oat_dNNN.NNN-last.vtu` marked
-    /// [`LAST_STATE_NOTE`] in its header (its own name: the displacement of
+    /// [`super::LAST_STATE_NOTE`] in its header (its own name: the displacement of
     /// a last step shorter than 0.5 µm would print as the output state's).
     fn write_state(&mut self, load: f64, u: &[f64], fields: &[ElementFields], last: bool) {
         let (suffix, note) = if last {
-            ("-last", LAST_STATE_NOTE)
+            ("-last", super::LAST_STATE_NOTE)
         } else {
             ("", "")
         };

@@ -31,7 +31,7 @@ pub struct ExtraDof {
 }
 
 /// A run of consecutive nodes that a user knows by name (a ply, the OAT's
-/// membrane): their labels and reference positions, for messages that say
+/// specimen): their labels and reference positions, for messages that say
 /// where something happened ([`Model::describe_dof`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NodeGroup {
@@ -43,6 +43,19 @@ pub struct NodeGroup {
     pub labels: Vec<i64>,
     /// The nodes' reference positions \[mm\].
     pub reference: Vec<nalgebra::Vector3<f64>>,
+}
+
+impl NodeGroup {
+    /// The nodes of `mesh`, numbered from `first` in the model, with the
+    /// mesh's labels and positions.
+    pub fn of_mesh(name: impl Into<String>, first: usize, mesh: &crate::mesh::Mesh) -> Self {
+        Self {
+            name: name.into(),
+            first,
+            labels: (0..mesh.nodes.len()).map(|n| mesh.node_label(n)).collect(),
+            reference: mesh.nodes.clone(),
+        }
+    }
 }
 
 /// Nodes, extra dofs and force terms.
@@ -68,16 +81,9 @@ impl Model {
         }
     }
 
-    /// A model made of one membrane (the off-axis tension test); its nodes
-    /// are one group, "the membrane", labelled by 1-based index.
+    /// A model made of one membrane (the off-axis tension test).
     pub fn membrane(membrane: MembraneModel, options: MembraneOptions) -> Self {
         let mut model = Self::new(membrane.nodes.len());
-        model.node_groups.push(NodeGroup {
-            name: "the membrane".into(),
-            first: 0,
-            labels: (1..=membrane.nodes.len() as i64).collect(),
-            reference: membrane.nodes.clone(),
-        });
         model.add(MembraneTerm::new("membrane", membrane, options));
         model
     }
