@@ -410,10 +410,11 @@ fn material_errors_name_the_set_or_the_file() {
 }
 
 /// docs/cases.md `[solver]`: every knob is checked (factor ranges, counts,
-/// increments, the factorisation's name).
+/// increments, the factorisation's name, the inertia's duration and
+/// amplitude).
 #[test]
 fn solver_table_is_validated() {
-    let cases: [(&str, &str); 7] = [
+    let cases: [(&str, &str); 9] = [
         (
             "cutback = 1.5",
             "solver.cutback = 1.5: expected a factor in (0, 1)",
@@ -438,6 +439,14 @@ fn solver_table_is_validated() {
         (
             "linear_solver = \"cholesky\"",
             "unknown variant `cholesky`, expected `lu` or `ldlt`",
+        ),
+        (
+            "inertia_duration = -1.0",
+            "solver.inertia_duration = -1: expected a number > 0",
+        ),
+        (
+            "inertia_amplitude = \"cubic\"",
+            "unknown variant `cubic`, expected one of `smooth-step`, `linear`, `quadratic`",
         ),
     ];
     for (body, expected) in cases {

@@ -752,6 +752,9 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
     if let Some(t) = p.max_wall_seconds {
         pos("max_wall_seconds", t)?;
     }
+    if let Some(t) = p.inertia_duration {
+        pos("inertia_duration", t)?;
+    }
     pos("stabilisation_limit", p.stabilisation_limit)?;
     if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
         return Err(bad(

@@ -102,10 +102,15 @@ pub struct FormingRow {
     /// Strain energy of the plies \[N·mm\] (quasi-static).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub internal_energy: Option<f64>,
-    /// Energy dissipated by the viscous stabilisation so far \[N·mm\]
-    /// (quasi-static, `docs/solver.md`, "Stabilisation").
+    /// Energy dissipated by the viscous stabilisation and the inertia's
+    /// backward Euler so far \[N·mm\] (quasi-static, `docs/solver.md`,
+    /// "Stabilisation", "Inertia").
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stabilisation_energy: Option<f64>,
+    /// Kinetic energy of the free dofs \[N·mm\] (quasi-static with
+    /// `inertia_duration`; 0 without inertia).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kinetic_energy: Option<f64>,
 }
 
 /// The JSON summary of a forming run.
@@ -352,6 +357,7 @@ impl Sink<'_> {
             zones: self.readout.zones(self.case, self.built, snapshot.u),
             internal_energy: None,
             stabilisation_energy: None,
+            kinetic_energy: None,
         }
     }
 
@@ -1113,6 +1119,7 @@ fn run_quasi_static(
             row.residual = record.residuals.last().copied();
             row.internal_energy = Some(record.internal_energy);
             row.stabilisation_energy = record.stabilisation.map(|s| s.dissipated_total);
+            row.kinetic_energy = record.stabilisation.map(|s| s.kinetic);
             if let Some(c) = &record.contact {
                 row.max_penetration = Some(c.max_penetration);
                 row.multiplier_change = Some(c.multiplier_change);
@@ -1265,6 +1272,7 @@ fn write_history(
         "residual [N]",
         "internal energy [N*mm]",
         "stabilisation energy [N*mm]",
+        "kinetic energy [N*mm]",
     ] {
         header.push(h.into());
     }
@@ -1292,6 +1300,7 @@ fn write_history(
                 h.residual.unwrap_or(0.0),
                 h.internal_energy.unwrap_or(0.0),
                 h.stabilisation_energy.unwrap_or(0.0),
+                h.kinetic_energy.unwrap_or(0.0),
             ]);
             row
         })

@@ -15,7 +15,7 @@ pub use assembly::Assembler;
 pub use cancel::CancelToken;
 pub use dofs::{Dirichlet, DofMap};
 pub use explicit::{
-    ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
+    Amplitude, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{

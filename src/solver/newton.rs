@@ -36,7 +36,11 @@
 //! `(c/Δλ) M (u − u_n)` to the residual of the free dofs, with `c` fixed
 //! or chosen from a target dissipation rate; its dissipated energy and the
 //! model's internal energy are reported per step (`docs/solver.md`,
-//! "Stabilisation"). `NCFORM_NEWTON_TRACE` in the environment prints every
+//! "Stabilisation"). Optionally the free dofs carry their inertia
+//! (`inertia_duration`): each step is then one backward-Euler step of the
+//! dynamics, `(M/h²)(u − u_n − h v_n)` added, its numerical dissipation
+//! reported with the stabilisation's (`docs/solver.md`, "Inertia").
+//! `NCFORM_NEWTON_TRACE` in the environment prints every
 //! iteration, augmentation, failed attempt and accepted step to stderr.
 
 use std::time::Instant;
@@ -44,6 +48,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::assembly::Assembler;
+use super::explicit::Amplitude;
 use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
 use crate::model::{Augmentation, Masses, Model, State, TermFailure};
 
@@ -96,6 +101,16 @@ pub struct NewtonParameters {
     /// Warn when the dissipated energy exceeds this fraction of the
     /// internal energy. Default 0.01.
     pub stabilisation_limit: f64,
+    /// Implicit dynamics: the programme's duration \[s\]. Set, the free
+    /// dofs carry their inertia by backward Euler, `r + (M/h²)(u − u_n −
+    /// h v_n)` with `h` the step's share of the duration
+    /// (`docs/solver.md`, "Inertia"); its numerical dissipation counts
+    /// with the stabilisation's. Default: none (static).
+    pub inertia_duration: Option<f64>,
+    /// Implicit dynamics: the programme's shape in time, the programme
+    /// fraction `f = shape(t/T)` (the explicit path's amplitudes; the
+    /// step's time is `h = T (τ(f_{n+1}) − τ(f_n))`). Default linear.
+    pub inertia_amplitude: Amplitude,
     /// Stop (incomplete, keeping every converged step) when a step would
     /// start after this wall time \[s\]. Default: no limit.
     pub max_wall_seconds: Option<f64>,
@@ -163,6 +178,8 @@ impl Default for NewtonParameters {
             stabilisation_fraction: 1e-4,
             stabilisation_factor: 0.0,
             stabilisation_limit: 0.01,
+            inertia_duration: None,
+            inertia_amplitude: Amplitude::Linear,
             max_wall_seconds: None,
             cancel: super::CancelToken::default(),
         }
@@ -203,15 +220,20 @@ pub struct StepRecord {
     pub stabilisation: Option<StabilisationRecord>,
 }
 
-/// What the viscous stabilisation did in one step.
+/// What the viscous stabilisation and the inertia did in one step.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct StabilisationRecord {
     /// The damping factor `c` of the step.
     pub factor: f64,
-    /// Energy dissipated in the step, `(c/Δλ) Δuᵀ M Δu` [N·mm].
+    /// Energy dissipated in the step, `(c/Δλ) Δuᵀ M Δu` plus, with
+    /// inertia, backward Euler's `½ (v_{n+1} − v_n)ᵀ M (v_{n+1} − v_n)`
+    /// [N·mm].
     pub dissipated: f64,
     /// Energy dissipated since the start [N·mm].
     pub dissipated_total: f64,
+    /// Kinetic energy of the free dofs at the end of the step,
+    /// `½ v_{n+1}ᵀ M v_{n+1}` (0 without inertia) [N·mm].
+    pub kinetic: f64,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -345,10 +367,14 @@ struct Work {
     trial: Vec<f64>,
     diag: Vec<f64>,
     diag_slots: Vec<usize>,
-    /// Stabilisation: mass of every free dof \[t\] and the free dofs at the
-    /// last accepted step \[mm\].
+    /// Stabilisation and inertia: mass of every free dof \[t\], the free
+    /// dofs at the last accepted step \[mm\], their velocities there
+    /// \[mm/s\] (inertia) and the point the step's mass term pulls
+    /// towards \[mm\].
     masses: Vec<f64>,
     previous: Vec<f64>,
+    velocity: Vec<f64>,
+    anchor: Vec<f64>,
 }
 
 /// Everything the step loop needs.
@@ -364,7 +390,8 @@ struct Newton<'a> {
     timings: SolverTimings,
     iterations: usize,
     factorisations: usize,
-    /// `c/Δλ` of the step being solved (0: no stabilisation).
+    /// The coefficient `a` of the step's mass term `a M (u − anchor)`:
+    /// `c/Δλ` of the stabilisation plus `1/h²` of the inertia (0: neither).
     viscosity: f64,
 }
 
@@ -416,7 +443,7 @@ impl Newton<'_> {
             let values = self.solver.values_mut();
             for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
                 let cm = self.viscosity * self.work.masses[k];
-                self.work.internal[d] += cm * (u[d] - self.work.previous[k]);
+                self.work.internal[d] += cm * (u[d] - self.work.anchor[k]);
                 values[self.work.diag_slots[k]] += cm;
             }
         }
@@ -433,7 +460,7 @@ impl Newton<'_> {
         if self.viscosity > 0.0 {
             for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
                 let cm = self.viscosity * self.work.masses[k];
-                self.work.trial_internal[d] += cm * (u[d] - self.work.previous[k]);
+                self.work.trial_internal[d] += cm * (u[d] - self.work.anchor[k]);
             }
         }
         self.timings.assembly += start.elapsed().as_secs_f64();
@@ -859,6 +886,8 @@ pub fn solve_quasi_static(
             trial: vec![0.0; n_total],
             diag: vec![0.0; n_free],
             diag_slots,
+            velocity: vec![0.0; n_free],
+            anchor: previous.clone(),
             masses,
             previous,
         },
@@ -948,11 +977,38 @@ pub fn solve_quasi_static(
                 None => 0.0,
             },
         };
-        newton.viscosity = if step_increment > 0.0 {
+        let viscous = if step_increment > 0.0 {
             factor / step_increment
         } else {
             0.0
         };
+        // Inertia: the step's time `h` and backward Euler's `1/h²`
+        // (`docs/solver.md`, "Inertia"); the mass term pulls towards
+        // `u_n + (a_i/(a_v + a_i)) h v_n`.
+        // The first step is static (the ply settles under gravity at
+        // rest, as the automatic stabilisation leaves it unstabilised);
+        // the dynamics starts from rest in that state.
+        let step_time = match (params.inertia_duration, &last_increment) {
+            (Some(duration), Some(_)) => {
+                let tau = |f: f64| params.inertia_amplitude.inverse(f);
+                duration * (tau(fraction(target)) - tau(fraction(load)))
+            }
+            _ => 0.0,
+        };
+        let inertial = if step_time > 0.0 {
+            1.0 / (step_time * step_time)
+        } else {
+            0.0
+        };
+        newton.viscosity = viscous + inertial;
+        let lead = if newton.viscosity > 0.0 {
+            inertial / newton.viscosity * step_time
+        } else {
+            0.0
+        };
+        for k in 0..n_free {
+            newton.work.anchor[k] = newton.work.previous[k] + lead * newton.work.velocity[k];
+        }
         // Predictor: prescribed values at the target, free dofs extrapolated;
         // then Newton solves, augmenting between them.
         let mut attempt = |extrapolate: bool, trial_u: &mut Vec<f64>| {
@@ -989,23 +1045,37 @@ pub fn solve_quasi_static(
                     .sum();
                 load = target;
                 total_augmentations += solved.augmentations;
-                let stabilisation = (params.stabilisation != Stabilisation::Off).then(|| {
-                    let dissipated = newton.viscosity
+                // Backward Euler's velocities, its numerical dissipation
+                // and the kinetic energy (inertia only).
+                let (mut inertial_dissipation, mut kinetic) = (0.0, 0.0);
+                for (k, &d) in newton.assembler.dofs.free.iter().enumerate() {
+                    if step_time > 0.0 {
+                        let v = delta[d] / step_time;
+                        let m = newton.work.masses[k];
+                        inertial_dissipation += 0.5 * m * (v - newton.work.velocity[k]).powi(2);
+                        kinetic += 0.5 * m * v * v;
+                        newton.work.velocity[k] = v;
+                    }
+                    newton.work.previous[k] = u[d];
+                }
+                let stabilisation = (params.stabilisation != Stabilisation::Off
+                    || params.inertia_duration.is_some())
+                .then(|| {
+                    let dissipated = viscous
                         * mass_norm_squared(
                             &newton.assembler.dofs.free,
                             &newton.work.masses,
                             &delta,
-                        );
+                        )
+                        + inertial_dissipation;
                     dissipated_total += dissipated;
                     StabilisationRecord {
                         factor,
                         dissipated,
                         dissipated_total,
+                        kinetic,
                     }
                 });
-                for (k, &d) in newton.assembler.dofs.free.iter().enumerate() {
-                    newton.work.previous[k] = u[d];
-                }
                 internal_energy = internal_energy_of(newton.model, &state);
                 if stabilisation.is_some()
                     && fraction(load) >= STABILISATION_RATIO_FROM
@@ -1015,8 +1085,9 @@ pub fn solve_quasi_static(
                 }
                 boost = (boost / 2.0).max(1.0);
                 if trace() {
+                    let kinetic = stabilisation.map_or(0.0, |s| s.kinetic);
                     eprintln!(
-                        "[step] λ {load:.6} reaction {reaction:.6e} E_int {internal_energy:.6e} D {dissipated_total:.6e} c {factor:.3e}"
+                        "[step] λ {load:.6} reaction {reaction:.6e} E_int {internal_energy:.6e} D {dissipated_total:.6e} c {factor:.3e} KE {kinetic:.3e}"
                     );
                 }
                 let record = StepRecord {
@@ -1074,9 +1145,11 @@ pub fn solve_quasi_static(
         }
     };
     let mut warnings = Vec::new();
-    if params.stabilisation != Stabilisation::Off && max_ratio > params.stabilisation_limit {
+    if (params.stabilisation != Stabilisation::Off || params.inertia_duration.is_some())
+        && max_ratio > params.stabilisation_limit
+    {
         warnings.push(format!(
-            "the viscous stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\")",
+            "the stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\", \"Inertia\")",
             100.0 * max_ratio,
             100.0 * params.stabilisation_limit
         ));

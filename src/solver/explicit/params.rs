@@ -1,10 +1,10 @@
 //! Settings of the explicit solver, their validation and the load amplitude.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The shape of the prescribed motion over the run: the load parameter is
 /// `λ(t) = λ_final · shape(t / T)` for `0 ≤ t ≤ T`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Amplitude {
     /// `shape(τ) = τ³ (10 − 15 τ + 6 τ²)`: zero velocity and acceleration at
