@@ -413,9 +413,9 @@ impl FullDepthPair {
 
 /// The implicit-dynamic settings (`docs/solver.md`, "Inertia" and
 /// "Forming: the hemisphere to full depth"): the contact's kinks rounded,
-/// the free dofs' inertia over a programme of 1 s starting from rest
+/// the free dofs' inertia over a programme of 2 s starting from rest
 /// (quadratic amplitude), no viscous stabilisation.
-const INERTIA_SOLVER: &str = "[solver]\nmax_iterations = 60\nmin_increment = 1e-6\ninertia_duration = 1.0\ninertia_amplitude = \"quadratic\"\n\n";
+const INERTIA_SOLVER: &str = "[solver]\nmax_iterations = 60\nmin_increment = 1e-6\ninertia_duration = 2.0\ninertia_amplitude = \"quadratic\"\n\n";
 
 /// Requirement: with inertia instead of the viscous stabilisation the
 /// quasi-static path reaches the full depth, its numerical dissipation
