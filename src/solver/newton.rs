@@ -392,7 +392,7 @@ struct Newton<'a> {
     factorisations: usize,
     /// The coefficient `a` of the step's mass term `a M (u − anchor)`:
     /// `c/Δλ` of the stabilisation plus `1/h²` of the inertia (0: neither).
-    viscosity: f64,
+    mass_coefficient: f64,
 }
 
 /// `NCFORM_NEWTON_TRACE` set: print every iteration, augmentation and
@@ -439,10 +439,10 @@ impl Newton<'_> {
         let result =
             self.assembler
                 .force_tangent(self.model, &state, &mut self.work.internal, values);
-        if self.viscosity > 0.0 {
+        if self.mass_coefficient > 0.0 {
             let values = self.solver.values_mut();
             for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
-                let cm = self.viscosity * self.work.masses[k];
+                let cm = self.mass_coefficient * self.work.masses[k];
                 self.work.internal[d] += cm * (u[d] - self.work.anchor[k]);
                 values[self.work.diag_slots[k]] += cm;
             }
@@ -457,9 +457,9 @@ impl Newton<'_> {
         let result = self
             .assembler
             .force(self.model, &state, &mut self.work.trial_internal);
-        if self.viscosity > 0.0 {
+        if self.mass_coefficient > 0.0 {
             for (k, &d) in self.assembler.dofs.free.iter().enumerate() {
-                let cm = self.viscosity * self.work.masses[k];
+                let cm = self.mass_coefficient * self.work.masses[k];
                 self.work.trial_internal[d] += cm * (u[d] - self.work.anchor[k]);
             }
         }
@@ -897,7 +897,7 @@ pub fn solve_quasi_static(
         },
         iterations: 0,
         factorisations: 0,
-        viscosity: 0.0,
+        mass_coefficient: 0.0,
     };
 
     let mut stops: Vec<f64> = stops
@@ -931,6 +931,10 @@ pub fn solve_quasi_static(
     let mut internal_energy = internal_energy_of(newton.model, &start_state);
     let mut dissipated_total = 0.0;
     let mut max_ratio = 0.0_f64;
+    // A mass term (viscous, inertial or both) is on: its energies are
+    // recorded and its dissipation checked against the limit.
+    let regularised =
+        params.stabilisation != Stabilisation::Off || params.inertia_duration.is_some();
     let status = loop {
         if load >= final_load - tiny {
             break RunStatus::Complete;
@@ -1000,9 +1004,9 @@ pub fn solve_quasi_static(
         } else {
             0.0
         };
-        newton.viscosity = viscous + inertial;
-        let lead = if newton.viscosity > 0.0 {
-            inertial / newton.viscosity * step_time
+        newton.mass_coefficient = viscous + inertial;
+        let lead = if newton.mass_coefficient > 0.0 {
+            inertial / newton.mass_coefficient * step_time
         } else {
             0.0
         };
@@ -1058,9 +1062,7 @@ pub fn solve_quasi_static(
                     }
                     newton.work.previous[k] = u[d];
                 }
-                let stabilisation = (params.stabilisation != Stabilisation::Off
-                    || params.inertia_duration.is_some())
-                .then(|| {
+                let stabilisation = regularised.then(|| {
                     let dissipated = viscous
                         * mass_norm_squared(
                             &newton.assembler.dofs.free,
@@ -1145,9 +1147,7 @@ pub fn solve_quasi_static(
         }
     };
     let mut warnings = Vec::new();
-    if (params.stabilisation != Stabilisation::Off || params.inertia_duration.is_some())
-        && max_ratio > params.stabilisation_limit
-    {
+    if regularised && max_ratio > params.stabilisation_limit {
         warnings.push(format!(
             "the stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\", \"Inertia\")",
             100.0 * max_ratio,
