@@ -986,12 +986,12 @@ pub fn solve_quasi_static(
         } else {
             0.0
         };
-        // Inertia: the step's time `h` and backward Euler's `1/h²`
-        // (`docs/solver.md`, "Inertia"); the mass term pulls towards
-        // `u_n + (a_i/(a_v + a_i)) h v_n`.
-        // The first step is static (the ply settles under gravity at
-        // rest, as the automatic stabilisation leaves it unstabilised);
-        // the dynamics starts from rest in that state.
+        // Inertia (`docs/solver.md`, "Inertia"): the step's time `h` and
+        // backward Euler's `1/h²`, none in the first step (static: the ply
+        // settles under gravity at rest, as the automatic stabilisation
+        // leaves it unstabilised; the dynamics starts from rest there).
+        // The one mass term `a M (u − anchor)`, `a = a_v + a_i`, pulls
+        // towards `u_n + (a_i/a) h v_n`.
         let step_time = match (params.inertia_duration, &last_increment) {
             (Some(duration), Some(_)) => {
                 let tau = |f: f64| params.inertia_amplitude.inverse(f);
@@ -1052,14 +1052,17 @@ pub fn solve_quasi_static(
                 // Backward Euler's velocities, its numerical dissipation
                 // and the kinetic energy (inertia only).
                 let (mut inertial_dissipation, mut kinetic) = (0.0, 0.0);
-                for (k, &d) in newton.assembler.dofs.free.iter().enumerate() {
-                    if step_time > 0.0 {
+                let free = &newton.assembler.dofs.free;
+                if step_time > 0.0 {
+                    for (k, &d) in free.iter().enumerate() {
                         let v = delta[d] / step_time;
                         let m = newton.work.masses[k];
                         inertial_dissipation += 0.5 * m * (v - newton.work.velocity[k]).powi(2);
                         kinetic += 0.5 * m * v * v;
                         newton.work.velocity[k] = v;
                     }
+                }
+                for (k, &d) in free.iter().enumerate() {
                     newton.work.previous[k] = u[d];
                 }
                 let stabilisation = regularised.then(|| {
