@@ -190,6 +190,7 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
         let mut v = vec![0.0; u.len()];
         let mut forces = vec![0.0; system.force_len()];
         let mut partial = vec![0.0; system.partials()];
+        let mut motion_partial = vec![0.0; system.node_blocks()];
         let mut seconds = vec![0.0; model.terms.len()];
         pool.install(|| {
             system
@@ -202,11 +203,12 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
                 pool.install(|| {
                     let start = Instant::now();
                     for _ in 0..iterations {
-                        system.update(
+                        let motion = system.update(
                             &forces,
                             &mut u,
                             &mut v,
                             &mut partial,
+                            &mut motion_partial,
                             Update {
                                 velocity_step: time_step,
                                 time_step,
@@ -216,6 +218,7 @@ fn run_group(criterion: &mut Criterion, group_name: &str, forming: bool) {
                         );
                         let state = State {
                             time_step,
+                            motion,
                             ..State::at(black_box(&u))
                         };
                         system

@@ -221,6 +221,20 @@ pub struct ToolContact {
     /// Whether the explicit path uses the broad phase (on by default; off
     /// queries every node every increment, for comparisons).
     broad_phase: bool,
+    /// Explicit path: an upper bound of the distance any node has moved
+    /// relative to the tool since the explicit set-up \[mm\] (the sum of
+    /// the solver's per-increment [`State::motion`] and the tool's own
+    /// motion).
+    travelled: f64,
+    /// The tool's dof at the last explicit force pass \[mm\] (NaN before
+    /// the first).
+    last_tool_position: f64,
+    /// Per batch of [`PAIR_LANES`] nodes: while `travelled` stays below
+    /// this value, every node of the batch is certainly beyond the cull
+    /// distance and its pair released, and the batch is skipped
+    /// (`docs/contact.md`, "Explicit path: batches proved far"); `−∞`:
+    /// visit.
+    deadlines: Vec<f64>,
     partials: Vec<f64>,
     outputs: Vec<NodeContact>,
     /// Friction work of the accepted quasi-static steps [N·mm].
@@ -264,6 +278,9 @@ impl ToolContact {
             pairs: Vec::new(),
             clearances: vec![Clearance::UNKNOWN; n],
             broad_phase: true,
+            travelled: 0.0,
+            last_tool_position: f64::NAN,
+            deadlines: Vec::new(),
             partials: vec![0.0; n.div_ceil(NODE_CHUNK)],
             outputs: vec![
                 NodeContact {
@@ -317,6 +334,7 @@ impl ToolContact {
     pub fn set_broad_phase(&mut self, on: bool) {
         self.broad_phase = on;
         self.clearances.fill(Clearance::UNKNOWN);
+        self.deadlines.fill(f64::NEG_INFINITY);
     }
 
     /// Nodes whose explicit broad-phase bound holds them beyond the cull
@@ -324,6 +342,25 @@ impl ToolContact {
     /// far relative to the tool).
     pub fn bounded_far(&self) -> usize {
         self.clearances.iter().filter(|c| c.slack > 0.0).count()
+    }
+
+    /// Batches of [`PAIR_LANES`] nodes that the next explicit pass skips
+    /// unless the nodes have moved: every node certainly beyond the cull
+    /// distance, every pair released (`docs/contact.md`, "Explicit path:
+    /// batches proved far").
+    pub fn batches_proved_far(&self) -> usize {
+        self.deadlines
+            .iter()
+            .filter(|d| **d > self.travelled)
+            .count()
+    }
+
+    /// Whether node slot `i` lies in a batch that the next explicit pass
+    /// skips unless the nodes have moved ([`ToolContact::batches_proved_far`]).
+    pub fn node_proved_far(&self, i: usize) -> bool {
+        self.deadlines
+            .get(i / PAIR_LANES)
+            .is_some_and(|d| *d > self.travelled)
     }
 
     /// The relative position `y = x − q d` of node slot `i` at `u`.
@@ -587,6 +624,9 @@ impl Term for ToolContact {
             .collect();
         self.springs = springs;
         self.clearances.fill(Clearance::UNKNOWN);
+        self.deadlines = vec![f64::NEG_INFINITY; self.pairs.len()];
+        self.travelled = 0.0;
+        self.last_tool_position = f64::NAN;
         Ok(())
     }
 
@@ -608,79 +648,131 @@ impl Term for ToolContact {
         let (nodes, reference, offsets) = (&self.nodes, &self.reference, &self.offsets);
         let dt = state.time_step;
         let q = u[3 * self.model_nodes + self.extra];
+        // How far the nodes may have moved relative to the tool since the
+        // last pass: the solver's bound plus the tool's own motion.
+        let step_motion = state.motion + (q - self.last_tool_position).abs() * direction.norm();
+        self.last_tool_position = q;
+        if broad_phase && step_motion.is_finite() {
+            self.travelled += step_motion * (1.0 + 1e-12) + 1e-12;
+        } else {
+            self.deadlines.fill(f64::NEG_INFINITY);
+        }
+        let travelled = self.travelled;
         node_out
             .par_chunks_mut(4 * NODE_CHUNK)
             .zip(self.pairs.par_chunks_mut(CHUNK_BATCHES))
             .zip(self.outputs.par_chunks_mut(NODE_CHUNK))
             .zip(self.clearances.par_chunks_mut(NODE_CHUNK))
+            .zip(self.deadlines.par_chunks_mut(CHUNK_BATCHES))
             .zip(self.partials.par_iter_mut())
             .enumerate()
-            .for_each(|(chunk, ((((f, pairs), outputs), clearances), partial))| {
-                let first = chunk * NODE_CHUNK;
-                // Phase 1: relative positions; the broad phase picks the
-                // nodes to query (the lists are filled, never cleared: no
-                // work for the nodes it proves far).
-                let mut inputs = [PenaltyInput::<PAIR_LANES>::default(); CHUNK_BATCHES];
-                let mut queried = ArrayVec::<usize, NODE_CHUNK>::new();
-                let mut points = ArrayVec::<Vector3<f64>, NODE_CHUNK>::new();
-                let mut culls = ArrayVec::<f64, NODE_CHUNK>::new();
-                for (j, clearance) in clearances.iter().enumerate() {
-                    let i = first + j;
-                    let node = nodes[i];
-                    let y = reference[i]
-                        + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
-                        - q * direction;
-                    let input = &mut inputs[j / PAIR_LANES];
-                    for c in 0..3 {
-                        input.position[c][j % PAIR_LANES] = y[c];
+            .for_each(
+                |(chunk, (((((f, pairs), outputs), clearances), deadlines), partial))| {
+                    let first = chunk * NODE_CHUNK;
+                    // Batches proved far at an earlier pass and not yet moved
+                    // that far: nothing to do, nothing changes.
+                    let skipped: u64 = deadlines
+                        .iter()
+                        .enumerate()
+                        .fold(0, |mask, (b, d)| mask | (u64::from(*d > travelled) << b));
+                    if skipped == u64::MAX >> (u64::BITS as usize - deadlines.len()) {
+                        *partial = 0.0;
+                        return;
                     }
-                    if !(broad_phase && clearance.far(&y)) {
-                        queried.push(j);
-                        points.push(y);
-                        culls.push(offsets[i] + EXPLICIT_CULL_MARGIN);
-                    }
-                }
-                // Phase 2: one batch query of the tool; the bounds; the
-                // answers into the kernel's input (culled: +∞, no normal).
-                let mut answers: ArrayVec<Option<SurfaceNormal>, NODE_CHUNK> =
-                    points.iter().map(|_| None).collect();
-                surface.closest_normals(&points, &culls, &mut answers);
-                for (((j, y), cull), answer) in
-                    queried.iter().zip(&points).zip(&culls).zip(&answers)
-                {
-                    if broad_phase {
-                        let bound = match answer {
-                            Some(p) => p.distance,
-                            None => surface.clearance(y),
-                        };
-                        clearances[*j] = Clearance::at(y, bound, *cull);
-                    }
-                    if let Some(p) = answer {
+                    // Phase 1: relative positions; the broad phase picks the
+                    // nodes to query (the lists are filled, never cleared: no
+                    // work for the nodes it proves far).
+                    let mut inputs = [PenaltyInput::<PAIR_LANES>::default(); CHUNK_BATCHES];
+                    let mut queried = ArrayVec::<usize, NODE_CHUNK>::new();
+                    let mut points = ArrayVec::<Vector3<f64>, NODE_CHUNK>::new();
+                    let mut culls = ArrayVec::<f64, NODE_CHUNK>::new();
+                    for (j, clearance) in clearances.iter().enumerate() {
+                        if skipped >> (j / PAIR_LANES) & 1 == 1 {
+                            continue;
+                        }
+                        let i = first + j;
+                        let node = nodes[i];
+                        let y = reference[i]
+                            + Vector3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2])
+                            - q * direction;
                         let input = &mut inputs[j / PAIR_LANES];
-                        input.distance[j % PAIR_LANES] = p.distance;
                         for c in 0..3 {
-                            input.normal[c][j % PAIR_LANES] = p.normal[c];
+                            input.position[c][j % PAIR_LANES] = y[c];
+                        }
+                        if !(broad_phase && clearance.far(&y)) {
+                            queried.push(j);
+                            points.push(y);
+                            culls.push(offsets[i] + EXPLICIT_CULL_MARGIN);
                         }
                     }
-                }
-                // Phase 3: the kernel on the batches with a pair to update
-                // (a pair culled and released stays so, its previous
-                // position moved on); forces and outputs in node order, the
-                // force on the tool summed in node order.
-                let kernel = KernelChunk {
-                    pairs,
-                    inputs: &inputs,
-                    forces: f,
-                    outputs,
-                    direction,
-                    time_step: dt,
-                };
-                let (failure, sum) = kernel.run();
-                if let Some(j) = failure {
-                    first_failure.fetch_min(first + j, Ordering::Relaxed);
-                }
-                *partial = sum;
-            });
+                    // Phase 2: one batch query of the tool; the bounds; the
+                    // answers into the kernel's input (culled: +∞, no normal).
+                    let mut answers: ArrayVec<Option<SurfaceNormal>, NODE_CHUNK> =
+                        points.iter().map(|_| None).collect();
+                    surface.closest_normals(&points, &culls, &mut answers);
+                    for (((j, y), cull), answer) in
+                        queried.iter().zip(&points).zip(&culls).zip(&answers)
+                    {
+                        // A culled node gets a new bound here; an answered one
+                        // is within the cull distance, where a bound would prove
+                        // nothing, so it keeps its last (still true) one.
+                        if broad_phase && answer.is_none() {
+                            clearances[*j] = Clearance::at(y, surface.clearance(y), *cull);
+                        }
+                        if let Some(p) = answer {
+                            let input = &mut inputs[j / PAIR_LANES];
+                            input.distance[j % PAIR_LANES] = p.distance;
+                            for c in 0..3 {
+                                input.normal[c][j % PAIR_LANES] = p.normal[c];
+                            }
+                        }
+                    }
+                    // Phase 3: the kernel on the batches with a pair to update
+                    // (a pair culled and released stays so, its previous
+                    // position moved on); forces and outputs in node order, the
+                    // force on the tool summed in node order.
+                    let kernel = KernelChunk {
+                        pairs,
+                        inputs: &inputs,
+                        forces: f,
+                        outputs,
+                        direction,
+                        time_step: dt,
+                        skipped,
+                    };
+                    let (failure, sum, settled) = kernel.run();
+                    if let Some(j) = failure {
+                        first_failure.fetch_min(first + j, Ordering::Relaxed);
+                    }
+                    *partial = sum;
+                    // The batches settled without the kernel (every pair culled
+                    // and released): skipped until the nodes may have moved as
+                    // far as the closest of them is from the cull distance.
+                    for (b, deadline) in deadlines.iter_mut().enumerate() {
+                        if skipped >> b & 1 == 1 {
+                            continue;
+                        }
+                        *deadline = f64::NEG_INFINITY;
+                        if !broad_phase || settled >> b & 1 == 0 {
+                            continue;
+                        }
+                        let lanes = (clearances.len() - b * PAIR_LANES).min(PAIR_LANES);
+                        let budget = (0..lanes).fold(f64::INFINITY, |least, w| {
+                            let c = &clearances[b * PAIR_LANES + w];
+                            let y = Vector3::new(
+                                inputs[b].position[0][w],
+                                inputs[b].position[1][w],
+                                inputs[b].position[2][w],
+                            );
+                            let room = c.slack - (y - c.centre).norm() - CLEARANCE_TOLERANCE;
+                            if room >= least { least } else { room }
+                        });
+                        if budget > 0.0 {
+                            *deadline = travelled + budget;
+                        }
+                    }
+                },
+            );
         if let Some(i) = Some(first_failure.into_inner()).filter(|i| *i != usize::MAX) {
             return Err(self.failure(i, "the contact kernel rejected the state".into()));
         }
@@ -809,14 +901,17 @@ struct KernelChunk<'a> {
     outputs: &'a mut [NodeContact],
     direction: Vector3<f64>,
     time_step: f64,
+    /// Bit `b`: batch `b` is skipped (nothing read, nothing written).
+    skipped: u64,
 }
 
 impl KernelChunk<'_> {
     /// The kernel on the batches with a pair to update, four lanes at once
     /// where the CPU has AVX2, else one at a time (the same bits either
     /// way): the lowest chunk-local node index of a pair the kernel
-    /// rejected, and the force on the tool's dof `−Σ d·r` in node order.
-    fn run(self) -> (Option<usize>, f64) {
+    /// rejected, the force on the tool's dof `−Σ d·r` in node order, and
+    /// the mask of the batches settled without the kernel.
+    fn run(self) -> (Option<usize>, f64, u64) {
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = pulp::x86::V3::try_new() {
             return <pulp::x86::V3 as pulp::Simd>::vectorize(
@@ -828,8 +923,8 @@ impl KernelChunk<'_> {
     }
 
     /// `kernel` on every batch with a pair that is not culled and released
-    /// (the others only move their previous position on), then each
-    /// node's force and outputs.
+    /// (the others only move their previous position on; the skipped ones
+    /// are left as they are), then each node's force and outputs.
     #[inline(always)]
     fn batches(
         self,
@@ -839,9 +934,10 @@ impl KernelChunk<'_> {
             &mut PenaltyOutput<PAIR_LANES>,
             f64,
         ) -> u32,
-    ) -> (Option<usize>, f64) {
+    ) -> (Option<usize>, f64, u64) {
         let mut first_failure = None;
         let mut sum = 0.0;
+        let mut settled = 0_u64;
         let mut result = PenaltyOutput::<PAIR_LANES>::default();
         for (b, (((batch, input), forces), outputs)) in self
             .pairs
@@ -851,6 +947,9 @@ impl KernelChunk<'_> {
             .zip(self.outputs.chunks_mut(PAIR_LANES))
             .enumerate()
         {
+            if self.skipped >> b & 1 == 1 {
+                continue;
+            }
             let mut active = 0_u32;
             for w in 0..outputs.len() {
                 if !(input.distance[w] == f64::INFINITY && batch.released(w)) {
@@ -859,6 +958,7 @@ impl KernelChunk<'_> {
             }
             if active == 0 {
                 batch.previous_position = input.position;
+                settled |= 1 << b;
             } else {
                 let failed = kernel(batch, input, &mut result, self.time_step) & active;
                 if failed != 0 && first_failure.is_none() {
@@ -892,7 +992,7 @@ impl KernelChunk<'_> {
                 o.slip = batch.slip_length[w];
             }
         }
-        (first_failure, sum)
+        (first_failure, sum, settled)
     }
 }
 
@@ -906,10 +1006,10 @@ struct Avx2Kernel<'a> {
 
 #[cfg(target_arch = "x86_64")]
 impl pulp::WithSimd for Avx2Kernel<'_> {
-    type Output = (Option<usize>, f64);
+    type Output = (Option<usize>, f64, u64);
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> (Option<usize>, f64) {
+    fn with_simd<S: pulp::Simd>(self, _: S) -> (Option<usize>, f64, u64) {
         let ctx = crate::material::lanes::x86::F64x4::new(self.simd, [0.0; PAIR_LANES]);
         self.chunk.batches(|batch, input, output, time_step| {
             crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step)

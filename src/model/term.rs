@@ -51,6 +51,12 @@ pub struct State<'a> {
     /// The time increment that led to this state \[s\] (explicit path; 0 on
     /// the quasi-static path and at the start).
     pub time_step: f64,
+    /// An upper bound of the distance any node moved from the state of the
+    /// previous force pass to this one \[mm\] (explicit path, measured by
+    /// the node pass); `+∞` where it is not known (the start, the
+    /// quasi-static path). A term may use it to skip nodes it has proved
+    /// far (`docs/contact.md`, "Explicit path: batches proved far").
+    pub motion: f64,
 }
 
 impl<'a> State<'a> {
@@ -62,6 +68,7 @@ impl<'a> State<'a> {
             load: 0.0,
             load_fraction: 0.0,
             time_step: 0.0,
+            motion: f64::INFINITY,
         }
     }
 }

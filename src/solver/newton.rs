@@ -429,6 +429,7 @@ impl Newton<'_> {
             load: self.load,
             load_fraction: self.load_fraction,
             time_step: 0.0,
+            motion: f64::INFINITY,
         }
     }
 

@@ -370,18 +370,83 @@ impl MassChains {
     /// meaningless in the full form and 0 in the stretch form.
     pub fn solve(&self, values: &mut [f64], u: &[f64], scratch: &mut [StretchEntry]) {
         match &self.stretch {
-            Some(stretch) => self.solve_stretch(stretch, values, u, scratch),
+            Some(stretch) => {
+                self.solve_stretch_chains(stretch, values, u, scratch);
+                let scratch = &*scratch;
+                values
+                    .par_chunks_mut(3 * CORRECTION_BLOCK)
+                    .enumerate()
+                    .for_each(|(block, values)| {
+                        for (i, a) in values.chunks_exact_mut(3).enumerate() {
+                            self.correct(block * CORRECTION_BLOCK + i, a, scratch);
+                        }
+                    });
+            }
             None => self.solve_full(values),
         }
     }
 
-    /// The stretch form's solve: per chain (in parallel) the directions,
-    /// `s = Uᵀ g` and the tridiagonal `(C⁻¹ + Uᵀ D⁻¹ U) y = s` by Thomas;
-    /// then per node (in parallel) `a = g − D⁻¹ U y`.
-    fn solve_stretch(
+    /// [`MassChains::solve`] but for the stretch form's last step, the
+    /// per-node correction `a = g − D⁻¹ U y`, which is left to the caller
+    /// ([`MassChains::correct`] on every node, e.g. fused with its own
+    /// pass over the nodes); the full form solves completely. Returns
+    /// whether the correction is left to the caller.
+    pub fn solve_but_correction(
+        &self,
+        values: &mut [f64],
+        u: &[f64],
+        scratch: &mut [StretchEntry],
+    ) -> bool {
+        match &self.stretch {
+            Some(stretch) => {
+                self.solve_stretch_chains(stretch, values, u, scratch);
+                true
+            }
+            None => {
+                self.solve_full(values);
+                false
+            }
+        }
+    }
+
+    /// The stretch form's correction of node `node`'s entries `a` (3,
+    /// `g` on entry): `a_p −= F_p (y_p d_p − y_{p−1} d_{p−1}) / m_p` with
+    /// the `y` and directions in `scratch` (after
+    /// [`MassChains::solve_but_correction`]); nodes off the chains and
+    /// the full form are left as they are.
+    #[inline(always)]
+    pub fn correct(&self, node: usize, a: &mut [f64], scratch: &[StretchEntry]) {
+        let Some(stretch) = &self.stretch else {
+            return;
+        };
+        let p = stretch.position[node];
+        if p == u32::MAX {
+            return;
+        }
+        let p = p as usize;
+        // The previous entry of a chain's first position is the last of
+        // another chain, whose y and direction are 0.
+        let own = &scratch[p];
+        let mut w = own.direction.map(|d| own.y * d);
+        if p > 0 {
+            let before = &scratch[p - 1];
+            for (wc, dc) in w.iter_mut().zip(before.direction) {
+                *wc -= before.y * dc;
+            }
+        }
+        let scale = stretch.inverse_mass[p];
+        for c in 0..3 {
+            a[c] -= stretch.free[p][c] * w[c] * scale;
+        }
+    }
+
+    /// The stretch form's solve but its correction: per chain (in
+    /// parallel) the directions, `s = Uᵀ g` and the tridiagonal
+    /// `(C⁻¹ + Uᵀ D⁻¹ U) y = s` by Thomas, into `scratch`.
+    fn solve_stretch_chains(
         &self,
         stretch: &StretchChains,
-        g: &mut [f64],
+        g: &[f64],
         u: &[f64],
         scratch: &mut [StretchEntry],
     ) {
@@ -446,33 +511,6 @@ impl MassChains {
                 for entry in entries[..len - 1].iter_mut().rev() {
                     entry.y -= entry.upper * next;
                     next = entry.y;
-                }
-            });
-        let scratch = &*scratch;
-        g.par_chunks_mut(3 * CORRECTION_BLOCK)
-            .enumerate()
-            .for_each(|(block, values)| {
-                for (i, a) in values.chunks_exact_mut(3).enumerate() {
-                    let p = stretch.position[block * CORRECTION_BLOCK + i];
-                    if p == u32::MAX {
-                        continue;
-                    }
-                    let p = p as usize;
-                    // a_p −= F_p (y_p d_p − y_{p−1} d_{p−1}) / m_p (the previous
-                    // entry of a chain's first position is the last of another
-                    // chain, whose y and direction are 0).
-                    let own = &scratch[p];
-                    let mut w = own.direction.map(|d| own.y * d);
-                    if p > 0 {
-                        let before = &scratch[p - 1];
-                        for (wc, dc) in w.iter_mut().zip(before.direction) {
-                            *wc -= before.y * dc;
-                        }
-                    }
-                    let scale = stretch.inverse_mass[p];
-                    for c in 0..3 {
-                        a[c] -= stretch.free[p][c] * w[c] * scale;
-                    }
                 }
             });
     }

@@ -264,6 +264,9 @@ struct Buffers {
     partial: Vec<f64>,
     damping_partial: Vec<f64>,
     driven_partial: Vec<f64>,
+    /// Per node block: the largest change of one displacement component
+    /// in the last node pass.
+    motion_partial: Vec<f64>,
 }
 
 /// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
@@ -313,6 +316,7 @@ fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
         load,
         load_fraction,
         time_step: 0.0,
+        motion: f64::INFINITY,
     }
 }
 
@@ -380,6 +384,7 @@ fn integrate(
         partial: vec![0.0; system.partials()],
         damping_partial: vec![0.0; system.partials()],
         driven_partial: vec![0.0; system.node_blocks()],
+        motion_partial: vec![0.0; system.node_blocks()],
     };
     let mut times: Vec<f64> = output_times
         .iter()
@@ -522,11 +527,12 @@ fn integrate(
         let time_next = if lands { target } else { time + dt };
         let load_next = load_at(time_next);
         let clock = Instant::now();
-        system.update(
+        let motion = system.update(
             &buffers.forces,
             u,
             v,
             &mut buffers.partial,
+            &mut buffers.motion_partial,
             Update {
                 velocity_step: 0.5 * (previous_step + dt),
                 time_step: dt,
@@ -553,6 +559,7 @@ fn integrate(
             model,
             &State {
                 time_step: dt,
+                motion,
                 ..state_at(u, now)
             },
             &mut buffers.forces,

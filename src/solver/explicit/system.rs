@@ -685,12 +685,11 @@ impl ExplicitSystem {
 
     /// Pass A of the coupled node pass: per free dof `−f` on the chains'
     /// nodes and `−f/m` elsewhere into `accelerations` (prescribed dofs get
-    /// 0), the residual into `internal` if given; then the chains' solve,
-    /// so that `accelerations = M⁻¹(−f)` on every free dof.
+    /// 0), the residual into `internal` if given. The chains' solve follows
+    /// (by the caller), so that `accelerations = M⁻¹(−f)` on every free dof.
     fn coupled_accelerations(
         &self,
         forces: &[f64],
-        u: &[f64],
         buffers: &mut CoupledBuffers,
         internal: Option<&mut [f64]>,
     ) {
@@ -729,8 +728,6 @@ impl ExplicitSystem {
                 .enumerate()
                 .for_each(|(block, a)| body(block, a, None)),
         }
-        self.chains
-            .solve(accelerations, u, buffers.chains.as_mut_slice());
     }
 
     /// [`ExplicitSystem::gather_with_kinetic`] with coupling masses (no
@@ -754,7 +751,9 @@ impl ExplicitSystem {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         let buffers = &mut *guard;
-        self.coupled_accelerations(forces, u, buffers, Some(internal));
+        self.coupled_accelerations(forces, buffers, Some(internal));
+        self.chains
+            .solve(&mut buffers.accelerations, u, buffers.chains.as_mut_slice());
         let velocities = buffers.accelerations.as_mut_slice();
         let blocks = self.node_blocks();
         velocities
@@ -796,17 +795,23 @@ impl ExplicitSystem {
     /// `u = p λ(t_{n+1})` and `v = Δu/Δt`. Per node block (and for the
     /// extra dofs, in the last entry), the energy the damping dissipates
     /// over the step goes into `partial`.
+    ///
+    /// Returns a bound of the largest distance a node moved \[mm\] (the
+    /// extra dofs left out; per node block, the largest change of one
+    /// component goes through `motion_partial`, one entry per node block):
+    /// the bound [`State::motion`] of the next force pass.
     pub fn update(
         &self,
         forces: &[f64],
         u: &mut [f64],
         v: &mut [f64],
         partial: &mut [f64],
+        motion_partial: &mut [f64],
         step: Update,
-    ) {
+    ) -> f64 {
         if !self.chains.is_empty() {
-            self.update_coupled(forces, u, v, partial, step);
-            return;
+            self.update_coupled(forces, u, v, partial, motion_partial, step);
+            return largest_motion(motion_partial);
         }
         let leapfrog = Leapfrog::new(step);
         let h = step.velocity_step;
@@ -818,9 +823,11 @@ impl ExplicitSystem {
             .par_chunks_mut(3 * NODE_BLOCK)
             .zip(v_nodes.par_chunks_mut(3 * NODE_BLOCK))
             .zip(partial_nodes.par_iter_mut())
+            .zip(motion_partial[..blocks].par_iter_mut())
             .enumerate()
-            .for_each(|(block, ((u_block, v_block), sum))| {
+            .for_each(|(block, (((u_block, v_block), sum), motion))| {
                 let mut dissipated = 0.0;
+                let mut largest = 0.0_f64;
                 let mut f = [0.0; 3];
                 let first = block * NODE_BLOCK;
                 for (i, (u_node, v_node)) in u_block
@@ -833,6 +840,7 @@ impl ExplicitSystem {
                     let m = self.masses.node[node];
                     let h_over_m = h * self.inverse_mass[node];
                     for k in 0..3 {
+                        let before = u_node[k];
                         dissipated += leapfrog.advance(
                             &mut u_node[k],
                             &mut v_node[k],
@@ -840,15 +848,19 @@ impl ExplicitSystem {
                             -(h_over_m * f[k]),
                             m,
                         );
+                        largest = at_least(largest, (u_node[k] - before).abs());
                     }
                 }
                 *sum = dissipated;
+                *motion = largest;
             });
         partial_extra[0] = self.update_extras(forces, u_extra, v_extra, step);
+        largest_motion(&motion_partial[..blocks])
     }
 
     /// The node pass with coupling masses: pass A and the chains' solve
-    /// ([`ExplicitSystem::coupled_accelerations`]), then per free dof
+    /// ([`ExplicitSystem::coupled_accelerations`]; the stretch form's
+    /// per-node correction fused into the update's pass), then per free dof
     /// `v_{n+½} = ((1 − αh/2) v_{n−½} + h a) / (1 + αh/2)` (α = 0 with
     /// couplings: the case refuses damping with them), the prescribed dofs
     /// and the extra dofs as in [`ExplicitSystem::update`].
@@ -858,6 +870,7 @@ impl ExplicitSystem {
         u: &mut [f64],
         v: &mut [f64],
         partial: &mut [f64],
+        motion_partial: &mut [f64],
         step: Update,
     ) {
         let leapfrog = Leapfrog::new(step);
@@ -867,7 +880,14 @@ impl ExplicitSystem {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         let buffers = &mut *guard;
-        self.coupled_accelerations(forces, u, buffers, None);
+        self.coupled_accelerations(forces, buffers, None);
+        // The chains' correction, if any, is done node by node below.
+        let correct = self.chains.solve_but_correction(
+            &mut buffers.accelerations,
+            u,
+            buffers.chains.as_mut_slice(),
+        );
+        let scratch = buffers.chains.as_slice();
         let accelerations = buffers.accelerations.as_slice();
         let (u_nodes, u_extra) = u.split_at_mut(3 * self.nodes);
         let (v_nodes, v_extra) = v.split_at_mut(3 * self.nodes);
@@ -878,9 +898,11 @@ impl ExplicitSystem {
             .zip(v_nodes.par_chunks_mut(3 * NODE_BLOCK))
             .zip(accelerations.par_chunks(3 * NODE_BLOCK))
             .zip(partial_nodes.par_iter_mut())
+            .zip(motion_partial[..blocks].par_iter_mut())
             .enumerate()
-            .for_each(|(block, (((u_block, v_block), a_block), sum))| {
+            .for_each(|(block, ((((u_block, v_block), a_block), sum), motion))| {
                 let mut dissipated = 0.0;
+                let mut largest = 0.0_f64;
                 let first = block * NODE_BLOCK;
                 for (i, ((u_node, v_node), a_node)) in u_block
                     .chunks_exact_mut(3)
@@ -890,17 +912,24 @@ impl ExplicitSystem {
                 {
                     let node = first + i;
                     let m = self.masses.node[node];
+                    let mut a = [a_node[0], a_node[1], a_node[2]];
+                    if correct {
+                        self.chains.correct(node, &mut a, scratch);
+                    }
                     for k in 0..3 {
+                        let before = u_node[k];
                         dissipated += leapfrog.advance(
                             &mut u_node[k],
                             &mut v_node[k],
                             self.per_unit_load[3 * node + k],
-                            h * a_node[k],
+                            h * a[k],
                             m,
                         );
+                        largest = at_least(largest, (u_node[k] - before).abs());
                     }
                 }
                 *sum = dissipated;
+                *motion = largest;
             });
         partial_extra[0] = self.update_extras(forces, u_extra, v_extra, step);
     }
@@ -940,5 +969,25 @@ impl ExplicitSystem {
     /// for the extra dofs.
     pub fn partials(&self) -> usize {
         self.node_blocks() + 1
+    }
+}
+
+/// `max(m, s)`, NaN if `s` is NaN (where `f64::max` would drop it).
+#[inline(always)]
+fn at_least(m: f64, s: f64) -> f64 {
+    if s <= m { m } else { s }
+}
+
+/// The largest node motion \[mm\] from the per-block largest changes of
+/// one displacement component: `√3` times the largest (a node's motion is
+/// at most that), rounded up (a relative 10⁻¹² and 10⁻¹² mm cover the
+/// round-off of the differences and of the product); `+∞` if not finite.
+fn largest_motion(components: &[f64]) -> f64 {
+    let largest = components.iter().fold(0.0_f64, |m, s| at_least(m, *s));
+    let motion = largest * 3.0_f64.sqrt();
+    if motion.is_finite() {
+        motion * (1.0 + 1e-12) + 1e-12
+    } else {
+        f64::INFINITY
     }
 }
