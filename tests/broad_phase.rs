@@ -178,6 +178,51 @@ fn term(surface: Arc<dyn RigidSurface>, reference: &[Vector3<f64>]) -> ToolConta
     )
 }
 
+/// The plate of the contact tests: a round opening of radius 30 mm with a
+/// 5 mm fillet, face at z = 0.
+fn filleted_plate() -> Arc<dyn RigidSurface> {
+    Arc::new(Placed::new(
+        PlateWithHole::new(30.0, 5.0).unwrap(),
+        Placement::identity(),
+    ))
+}
+
+/// Two contact terms of `plate` on the nodes at `reference`: with the
+/// broad phase (the default) and without.
+fn with_and_without(
+    plate: &Arc<dyn RigidSurface>,
+    reference: &[Vector3<f64>],
+) -> (ToolContact, ToolContact) {
+    let with = term(plate.clone(), reference);
+    let mut without = term(plate.clone(), reference);
+    without.set_broad_phase(false);
+    (with, without)
+}
+
+/// One explicit pass of every term of `terms` at `state`: the same forces,
+/// per-node outputs, energies and frequency bound as the first's, bit for
+/// bit.
+fn assert_same_pass(terms: &mut [&mut ToolContact], state: &State, masses: &Masses, step: usize) {
+    let size = 4 * (terms[0].nodes().len() + 1);
+    let mut passes = Vec::new();
+    for t in terms.iter_mut() {
+        let mut f = vec![0.0; size];
+        t.explicit_forces(state, &mut f).unwrap();
+        let energy = t.energy(state).unwrap();
+        let bound = t.frequency_bound(state, masses).unwrap();
+        let bits = f
+            .iter()
+            .chain(&[energy.contact, energy.dissipated, bound.nodes, bound.extras])
+            .map(|x| x.to_bits())
+            .collect::<Vec<_>>();
+        passes.push(bits);
+    }
+    for (t, pass) in terms.iter().zip(&passes).skip(1) {
+        assert_eq!(pass, &passes[0], "step {step}");
+        assert_eq!(t.node_contacts(), terms[0].node_contacts(), "step {step}");
+    }
+}
+
 /// Requirement: the broad phase never misses a contact. Two terms, one
 /// with and one without the broad phase, follow the same random motions
 /// of 600 nodes about a filleted plate (steps of up to 0.05 mm, jumps of up
@@ -199,13 +244,8 @@ fn broad_phase_never_misses_a_contact() {
             )
         })
         .collect();
-    let plate: Arc<dyn RigidSurface> = Arc::new(Placed::new(
-        PlateWithHole::new(30.0, 5.0).unwrap(),
-        Placement::identity(),
-    ));
-    let mut with = term(plate.clone(), &reference);
-    let mut without = term(plate.clone(), &reference);
-    without.set_broad_phase(false);
+    let plate = filleted_plate();
+    let (mut with, mut without) = with_and_without(&plate, &reference);
     let mut default = term(Arc::new(NoClearance(plate)), &reference);
     let masses = Masses {
         node: vec![1e-6; n],
@@ -216,8 +256,6 @@ fn broad_phase_never_misses_a_contact() {
     for t in [&mut with, &mut without, &mut default] {
         t.explicit_setup(&State::at(&u), &masses, dt).unwrap();
     }
-    let size = 4 * (n + 1);
-    let (mut fa, mut fb, mut fc) = (vec![0.0; size], vec![0.0; size], vec![0.0; size]);
     let mut skipped = 0;
     let mut closed = 0;
     for step in 0..400 {
@@ -239,27 +277,12 @@ fn broad_phase_never_misses_a_contact() {
             time_step: dt,
             ..State::at(&u)
         };
-        with.explicit_forces(&state, &mut fa).unwrap();
-        without.explicit_forces(&state, &mut fb).unwrap();
-        default.explicit_forces(&state, &mut fc).unwrap();
-        for (k, ((a, b), c)) in fa.iter().zip(&fb).zip(&fc).enumerate() {
-            assert_eq!(a.to_bits(), b.to_bits(), "step {step}, entry {k}");
-            assert_eq!(a.to_bits(), c.to_bits(), "step {step}, entry {k}");
-        }
-        assert_eq!(with.node_contacts(), without.node_contacts(), "step {step}");
-        assert_eq!(with.node_contacts(), default.node_contacts(), "step {step}");
-        let (ea, eb) = (
-            with.energy(&state).unwrap(),
-            without.energy(&state).unwrap(),
+        assert_same_pass(
+            &mut [&mut with, &mut without, &mut default],
+            &state,
+            &masses,
+            step,
         );
-        assert_eq!(ea.contact.to_bits(), eb.contact.to_bits());
-        assert_eq!(ea.dissipated.to_bits(), eb.dissipated.to_bits());
-        let (wa, wb) = (
-            with.frequency_bound(&state, &masses).unwrap(),
-            without.frequency_bound(&state, &masses).unwrap(),
-        );
-        assert_eq!(wa.nodes.to_bits(), wb.nodes.to_bits(), "step {step}");
-        assert_eq!(wa.extras.to_bits(), wb.extras.to_bits(), "step {step}");
         skipped += with.bounded_far();
         closed += with
             .node_contacts()
@@ -300,13 +323,7 @@ fn skipped_batches_change_nothing() {
             )
         })
         .collect();
-    let plate: Arc<dyn RigidSurface> = Arc::new(Placed::new(
-        PlateWithHole::new(30.0, 5.0).unwrap(),
-        Placement::identity(),
-    ));
-    let mut with = term(plate.clone(), &reference);
-    let mut without = term(plate, &reference);
-    without.set_broad_phase(false);
+    let (mut with, mut without) = with_and_without(&filleted_plate(), &reference);
     let masses = Masses {
         node: vec![1e-6; n],
         extra: vec![1.7e-3],
@@ -317,8 +334,6 @@ fn skipped_batches_change_nothing() {
         t.explicit_setup(&State::at(&u), &masses, dt).unwrap();
     }
     let mut sink: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..0.01)).collect();
-    let size = 4 * (n + 1);
-    let (mut fa, mut fb) = (vec![0.0; size], vec![0.0; size]);
     let mut proved_far = 0;
     let mut skipped_once = vec![false; n];
     let mut came_back = 0;
@@ -347,28 +362,7 @@ fn skipped_batches_change_nothing() {
             motion: motion * (1.0 + 1e-12) + 1e-12,
             ..State::at(&u)
         };
-        with.explicit_forces(&state, &mut fa).unwrap();
-        without.explicit_forces(&state, &mut fb).unwrap();
-        for (k, (a, b)) in fa.iter().zip(&fb).enumerate() {
-            assert_eq!(a.to_bits(), b.to_bits(), "step {step}, entry {k}");
-        }
-        assert_eq!(with.node_contacts(), without.node_contacts(), "step {step}");
-        let (ea, eb) = (
-            with.energy(&state).unwrap(),
-            without.energy(&state).unwrap(),
-        );
-        assert_eq!(ea.contact.to_bits(), eb.contact.to_bits(), "step {step}");
-        assert_eq!(
-            ea.dissipated.to_bits(),
-            eb.dissipated.to_bits(),
-            "step {step}"
-        );
-        let (wa, wb) = (
-            with.frequency_bound(&state, &masses).unwrap(),
-            without.frequency_bound(&state, &masses).unwrap(),
-        );
-        assert_eq!(wa.nodes.to_bits(), wb.nodes.to_bits(), "step {step}");
-        assert_eq!(wa.extras.to_bits(), wb.extras.to_bits(), "step {step}");
+        assert_same_pass(&mut [&mut with, &mut without], &state, &masses, step);
         assert_eq!(without.batches_proved_far(), 0);
         proved_far += with.batches_proved_far();
         for (i, c) in with.node_contacts().iter().enumerate() {
