@@ -875,6 +875,7 @@ impl ExplicitSystem {
     ) {
         let leapfrog = Leapfrog::new(step);
         let h = step.velocity_step;
+        let damping = step.damping != 0.0;
         let mut guard = self
             .accelerations
             .lock()
@@ -918,13 +919,18 @@ impl ExplicitSystem {
                     }
                     for k in 0..3 {
                         let before = u_node[k];
-                        dissipated += leapfrog.advance(
+                        let damped = leapfrog.advance(
                             &mut u_node[k],
                             &mut v_node[k],
                             self.per_unit_load[3 * node + k],
                             h * a[k],
                             m,
                         );
+                        // Without damping (always, with couplings: the case
+                        // refuses both) the damping's energy is not formed.
+                        if damping {
+                            dissipated += damped;
+                        }
                         largest = at_least(largest, (u_node[k] - before).abs());
                     }
                 }
