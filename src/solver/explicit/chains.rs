@@ -391,7 +391,7 @@ impl MassChains {
     /// ([`MassChains::correct`] on every node, e.g. fused with its own
     /// pass over the nodes); the full form solves completely. Returns
     /// whether the correction is left to the caller.
-    pub fn solve_but_correction(
+    pub fn solve_without_correction(
         &self,
         values: &mut [f64],
         u: &[f64],
@@ -412,7 +412,7 @@ impl MassChains {
     /// The stretch form's correction of node `node`'s entries `a` (3,
     /// `g` on entry): `a_p −= F_p (y_p d_p − y_{p−1} d_{p−1}) / m_p` with
     /// the `y` and directions in `scratch` (after
-    /// [`MassChains::solve_but_correction`]); nodes off the chains and
+    /// [`MassChains::solve_without_correction`]); nodes off the chains and
     /// the full form are left as they are.
     #[inline(always)]
     pub fn correct(&self, node: usize, a: &mut [f64], scratch: &[StretchEntry]) {
@@ -440,7 +440,7 @@ impl MassChains {
         }
     }
 
-    /// The stretch form's solve but its correction: per chain (in
+    /// The stretch form's solve without its correction: per chain (in
     /// parallel) the directions, `s = Uᵀ g` and the tridiagonal
     /// `(C⁻¹ + Uᵀ D⁻¹ U) y = s` by Thomas, into `scratch`.
     fn solve_stretch_chains(

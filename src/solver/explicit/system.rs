@@ -883,7 +883,7 @@ impl ExplicitSystem {
         let buffers = &mut *guard;
         self.coupled_accelerations(forces, buffers, None);
         // The chains' correction, if any, is done node by node below.
-        let correct = self.chains.solve_but_correction(
+        let correct = self.chains.solve_without_correction(
             &mut buffers.accelerations,
             u,
             buffers.chains.as_mut_slice(),
