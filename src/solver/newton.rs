@@ -425,11 +425,9 @@ impl Newton<'_> {
 
     fn state<'u>(&self, u: &'u [f64]) -> State<'u> {
         State {
-            u,
             load: self.load,
             load_fraction: self.load_fraction,
-            time_step: 0.0,
-            motion: f64::INFINITY,
+            ..State::at(u)
         }
     }
 

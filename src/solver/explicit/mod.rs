@@ -312,11 +312,9 @@ pub fn solve_explicit(
 /// fraction, reached by a step `time_step` [s].
 fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
     State {
-        u,
         load,
         load_fraction,
-        time_step: 0.0,
-        motion: f64::INFINITY,
+        ..State::at(u)
     }
 }
 
