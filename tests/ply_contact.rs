@@ -15,6 +15,9 @@ use ncform::cli::run::Progress;
 use ncform::contact::ply_pair::{
     CandidateLists, closest_candidate, closest_on_triangle, triangle_boxes,
 };
+use ncform::model::{
+    ExplicitPenalty, Masses, PlyContact, PlyContactOptions, PlySurface, State, Term,
+};
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 
@@ -180,6 +183,94 @@ fn candidate_lists_hold_every_triangle_within_reach() {
         }
     }
     assert_eq!(lists.builds(), 3);
+}
+
+/// Two 12 × 12-cell plies 0.3 mm apart, the upper one pressed 2 µm into
+/// the lower one, as a [`PlyContact`] set up for the explicit path.
+fn stacked_plies() -> PlyContact {
+    let (lower, triangles) = grid(12, 2.0, 0.0);
+    let (upper, _) = grid(12, 2.0, 0.3);
+    let n = lower.len();
+    let surface = |name: &str, first: usize, reference: Vec<Vector3<f64>>| PlySurface {
+        name: name.into(),
+        nodes: (first..first + n).collect(),
+        reference,
+        triangles: triangles.clone(),
+        thickness: 0.3,
+    };
+    let mut term = PlyContact::new(
+        "lower with upper",
+        surface("lower", 0, lower),
+        surface("upper", n, upper),
+        PlyContactOptions {
+            friction: 0.336,
+            explicit_stiffness: ExplicitPenalty::DEFAULT,
+            explicit_damping: 0.2,
+            skin: 1.0,
+        },
+    )
+    .expect("ply contact");
+    let masses = Masses {
+        node: vec![1e-9; 2 * n],
+        extra: Vec::new(),
+    };
+    term.explicit_setup(&State::at(&vec![0.0; 6 * n]), &masses, 1e-6)
+        .expect("set-up");
+    term
+}
+
+/// Requirement: the candidate lists are rebuilt at the same increments,
+/// and every force is the same, whether the term looks at every node's
+/// motion at every increment (no motion bound: `State::motion = ∞`) or
+/// skips that while the solver's bound of the nodes' motion, summed since
+/// the last build, proves no node has moved half the skin; and the
+/// shortcut is not idle (it fails the test when the bound is too small).
+///
+/// Set-up: the upper ply slides by 0.04 mm an increment in x while
+/// pressed 2 µm into the lower one, 60 increments (2.4 mm: several
+/// rebuilds at a 1 mm skin). Tolerance: exact (the same decisions give the
+/// same bits).
+#[test]
+fn list_rebuilds_follow_the_motion_bound_exactly() {
+    let slide = 0.04;
+    let n = 13 * 13;
+    let mut with_bound = stacked_plies();
+    let mut without = stacked_plies();
+    let mut too_small = stacked_plies();
+    let (mut a, mut b, mut c) = (vec![0.0; 6 * n], vec![0.0; 6 * n], vec![0.0; 6 * n]);
+    let mut u = vec![0.0; 6 * n];
+    for step in 1..=60 {
+        for node in u[3 * n..].chunks_exact_mut(3) {
+            node[0] = slide * step as f64;
+            node[2] = -2e-3;
+        }
+        // The solver's bound: √3 times the largest component change.
+        let motion = slide * 3f64.sqrt() * (1.0 + 1e-12);
+        let state = |motion: f64| State {
+            time_step: 1e-6,
+            motion,
+            ..State::at(&u)
+        };
+        with_bound
+            .explicit_forces(&state(motion), &mut a)
+            .expect("forces");
+        without
+            .explicit_forces(&state(f64::INFINITY), &mut b)
+            .expect("forces");
+        too_small
+            .explicit_forces(&state(1e-3), &mut c)
+            .expect("forces");
+        assert_eq!(a, b, "increment {step}: forces");
+        assert_eq!(
+            with_bound.list_builds(),
+            without.list_builds(),
+            "increment {step}: list builds"
+        );
+    }
+    assert!(without.list_builds() >= 2 + 4, "{}", without.list_builds());
+    // A bound that is not one (1 µm against 40 µm of motion) misses the
+    // rebuilds: the shortcut is what decides when it proves anything.
+    assert!(too_small.list_builds() < without.list_builds());
 }
 
 /// `μ` of the pull-out case (the paper's ply–ply friction) and the dead
