@@ -26,13 +26,16 @@ use std::hint::black_box;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use ncform::contact::ply_pair::{CandidateLists, closest_candidate, triangle_boxes};
-use ncform::model::{Masses, PlyContact, PlyContactOptions, PlySurface, State, Term};
+use ncform::model::{Masses, State, Term};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
 #[path = "common/threads.rs"]
 mod threads;
 use threads::on_one_and_two_threads;
+#[path = "common/ply_stack.rs"]
+mod ply_stack;
+use ply_stack::ply_stack;
 
 /// Nodes per side of a ply.
 const SIDE: usize = 85;
@@ -110,25 +113,7 @@ fn node_cycles(criterion: &mut Criterion) {
     let (lower, triangles) = ply(0.15, [0.0; 2], 0.0, 1);
     let (upper, _) = ply(0.15 + OFFSET, [1.3, 0.7], 0.2, 2);
     let n = lower.len();
-    let surface = |name: &str, first: usize, reference: Vec<Vector3<f64>>| PlySurface {
-        name: name.into(),
-        nodes: (first..first + n).collect(),
-        reference,
-        triangles: triangles.clone(),
-        thickness: OFFSET,
-    };
-    let mut term = PlyContact::new(
-        "ply-0 with ply-90",
-        surface("ply-0", 0, lower),
-        surface("ply-90", n, upper),
-        PlyContactOptions {
-            friction: 0.336,
-            explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
-            explicit_damping: 0.2,
-            skin: SKIN,
-        },
-    )
-    .expect("ply contact");
+    let mut term = ply_stack(lower, upper, &triangles, OFFSET, SKIN);
     // Paper-size figures: a node of 12.8 mm² at 0.3 kg/m², a step of
     // 1.2 µs (the bench's order).
     let masses = Masses {

@@ -15,11 +15,13 @@ use ncform::cli::run::Progress;
 use ncform::contact::ply_pair::{
     CandidateLists, closest_candidate, closest_on_triangle, triangle_boxes,
 };
-use ncform::model::{
-    ExplicitPenalty, Masses, PlyContact, PlyContactOptions, PlySurface, State, Term,
-};
+use ncform::model::{Masses, PlyContact, State, Term};
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
+
+#[path = "../benches/common/ply_stack.rs"]
+mod ply_stack;
+use ply_stack::ply_stack;
 
 fn verification_case(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -191,25 +193,7 @@ fn stacked_plies() -> PlyContact {
     let (lower, triangles) = grid(12, 2.0, 0.0);
     let (upper, _) = grid(12, 2.0, 0.3);
     let n = lower.len();
-    let surface = |name: &str, first: usize, reference: Vec<Vector3<f64>>| PlySurface {
-        name: name.into(),
-        nodes: (first..first + n).collect(),
-        reference,
-        triangles: triangles.clone(),
-        thickness: 0.3,
-    };
-    let mut term = PlyContact::new(
-        "lower with upper",
-        surface("lower", 0, lower),
-        surface("upper", n, upper),
-        PlyContactOptions {
-            friction: 0.336,
-            explicit_stiffness: ExplicitPenalty::DEFAULT,
-            explicit_damping: 0.2,
-            skin: 1.0,
-        },
-    )
-    .expect("ply contact");
+    let mut term = ply_stack(lower, upper, &triangles, 0.3, 1.0);
     let masses = Masses {
         node: vec![1e-9; 2 * n],
         extra: Vec::new(),
