@@ -187,8 +187,8 @@ fn candidate_lists_hold_every_triangle_within_reach() {
     assert_eq!(lists.builds(), 3);
 }
 
-/// Two 12 × 12-cell plies 0.3 mm apart, the upper one pressed 2 µm into
-/// the lower one, as a [`PlyContact`] set up for the explicit path.
+/// Two plies of 12 × 12 cells of 2 mm, their mid-surfaces 0.3 mm apart
+/// (touching), as a [`PlyContact`] set up for the explicit path.
 fn stacked_plies() -> PlyContact {
     let (lower, triangles) = grid(12, 2.0, 0.0);
     let (upper, _) = grid(12, 2.0, 0.3);

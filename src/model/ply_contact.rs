@@ -286,8 +286,9 @@ impl PlyContact {
     /// Rebuilds both passes' candidate lists when a node has moved half
     /// the skin since the last build (or when `force`). Nodes are only
     /// looked at once `motion` (the solver's bound of any node's motion
-    /// since the last call, [`State::motion`]) summed since the build may
-    /// exceed half the skin.
+    /// since the last call, [`State::motion`]), summed since the nodes
+    /// were last looked at onto the largest motion found then, may exceed
+    /// half the skin.
     fn refresh_lists(&mut self, force: bool, motion: f64) {
         let half = 0.5 * self.options.skin;
         // Rounding allowance of the sum, as the tool contact's
@@ -296,14 +297,19 @@ impl PlyContact {
         if !force && self.travelled.is_finite() && self.travelled * (1.0 + 1e-12) < half {
             return;
         }
-        let moved = force
-            || self.positions.iter().zip(&self.anchors).any(|(x, a)| {
-                x.iter()
-                    .zip(a)
-                    .any(|(x, a)| (x - a).norm_squared() > half * half)
-            });
-        if !moved {
-            return;
+        if !force {
+            let largest = self
+                .positions
+                .iter()
+                .zip(&self.anchors)
+                .flat_map(|(x, a)| x.iter().zip(a).map(|(x, a)| (x - a).norm_squared()))
+                .fold(0.0, f64::max);
+            if largest <= half * half {
+                // No node has moved half the skin: the bound starts again
+                // from the largest motion (and its square root's rounding).
+                self.travelled = largest.sqrt() * (1.0 + 1e-12) + 1e-12;
+                return;
+            }
         }
         for (k, pass) in self.passes.iter_mut().enumerate() {
             let other = 1 - k;
