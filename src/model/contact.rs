@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use super::term::{
     Augmentation, FrequencyBound, Masses, NO_SLOT, State, Stencils, Term, TermEnergy, TermFailure,
+    rounded_up,
 };
 use crate::contact::kernel::{
     AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
@@ -653,7 +654,7 @@ impl Term for ToolContact {
         let step_motion = state.motion + (q - self.last_tool_position).abs() * direction.norm();
         self.last_tool_position = q;
         if broad_phase && step_motion.is_finite() {
-            self.travelled += step_motion * (1.0 + 1e-12) + 1e-12;
+            self.travelled += rounded_up(step_motion);
         } else {
             self.deadlines.fill(f64::NEG_INFINITY);
         }

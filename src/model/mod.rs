@@ -20,7 +20,7 @@ pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
 pub use ply_contact::{PlyContact, PlyContactOptions, PlyNodeContact, PlySurface};
 pub use term::{
     Augmentation, FrequencyBound, MassCoupling, MassScaling, Masses, NO_SLOT, State, Stencils,
-    Term, TermEnergy, TermFailure,
+    Term, TermEnergy, TermFailure, rounded_up,
 };
 
 /// A dof of a rigid body (a tool's translation along its axis).

@@ -23,7 +23,9 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::contact::ExplicitPenalty;
-use super::term::{FrequencyBound, Masses, State, Stencils, Term, TermEnergy, TermFailure};
+use super::term::{
+    FrequencyBound, Masses, State, Stencils, Term, TermEnergy, TermFailure, rounded_up,
+};
 use crate::contact::SurfaceNormal;
 use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
 use crate::contact::ply_pair::{
@@ -284,33 +286,33 @@ impl PlyContact {
     }
 
     /// Rebuilds both passes' candidate lists when a node has moved half
-    /// the skin since the last build (or when `force`). Nodes are only
-    /// looked at once `motion` (the solver's bound of any node's motion
-    /// since the last call, [`State::motion`]), summed since the nodes
-    /// were last looked at onto the largest motion found then, may exceed
-    /// half the skin.
-    fn refresh_lists(&mut self, force: bool, motion: f64) {
+    /// the skin since the last build. Nodes are only looked at once
+    /// `motion` (the solver's bound of any node's motion since the last
+    /// call, [`State::motion`]), summed since the nodes were last looked at
+    /// onto the largest motion found then, may exceed half the skin.
+    fn refresh_lists(&mut self, motion: f64) {
         let half = 0.5 * self.options.skin;
-        // Rounding allowance of the sum, as the tool contact's
-        // (`docs/contact.md`, "Explicit path: batches proved far").
-        self.travelled += motion * (1.0 + 1e-12) + 1e-12;
-        if !force && self.travelled.is_finite() && self.travelled * (1.0 + 1e-12) < half {
+        self.travelled += rounded_up(motion);
+        if self.travelled < half {
             return;
         }
-        if !force {
-            let largest = self
-                .positions
-                .iter()
-                .zip(&self.anchors)
-                .flat_map(|(x, a)| x.iter().zip(a).map(|(x, a)| (x - a).norm_squared()))
-                .fold(0.0, f64::max);
-            if largest <= half * half {
-                // No node has moved half the skin: the bound starts again
-                // from the largest motion (and its square root's rounding).
-                self.travelled = largest.sqrt() * (1.0 + 1e-12) + 1e-12;
-                return;
-            }
+        let largest = self
+            .positions
+            .iter()
+            .zip(&self.anchors)
+            .flat_map(|(x, a)| x.iter().zip(a).map(|(x, a)| (x - a).norm_squared()))
+            .fold(0.0, f64::max);
+        if largest <= half * half {
+            // No node has moved half the skin: the bound starts again from
+            // the largest motion.
+            self.travelled = rounded_up(largest.sqrt());
+            return;
         }
+        self.rebuild_lists();
+    }
+
+    /// Builds both passes' candidate lists at the current positions.
+    fn rebuild_lists(&mut self) {
         for (k, pass) in self.passes.iter_mut().enumerate() {
             let other = 1 - k;
             pass.lists.rebuild(
@@ -392,7 +394,6 @@ impl Term for PlyContact {
     ) -> Result<(), TermFailure> {
         self.update_positions(state.u);
         self.previous = self.positions.clone();
-        self.travelled = f64::INFINITY;
         let reach = self.offset + CULL_MARGIN;
         let mut passes = Vec::with_capacity(2);
         for k in 0..2 {
@@ -446,7 +447,7 @@ impl Term for PlyContact {
             });
         }
         self.passes = passes;
-        self.refresh_lists(true, f64::INFINITY);
+        self.rebuild_lists();
         // The side every node starts on; overlapping plies are an error.
         for k in 0..2 {
             let other = 1 - k;
@@ -493,7 +494,7 @@ impl Term for PlyContact {
             return Ok(());
         }
         self.update_positions(state.u);
-        self.refresh_lists(false, state.motion);
+        self.refresh_lists(state.motion);
         let dt = state.time_step;
         let offset = self.offset;
         let cull = self.offset + CULL_MARGIN;

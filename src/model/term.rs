@@ -73,6 +73,15 @@ impl<'a> State<'a> {
     }
 }
 
+/// `distance` rounded up by a relative 10⁻¹² and 10⁻¹² mm: what the
+/// bounds of nodes' motion (`State::motion` and the sums terms keep of it)
+/// add so that they stay bounds under the round-off of the differences,
+/// products and sums that form them \[mm\].
+#[inline]
+pub fn rounded_up(distance: f64) -> f64 {
+    distance * (1.0 + 1e-12) + 1e-12
+}
+
 /// A term's energies [N·mm], by kind, for the energy balance.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct TermEnergy {

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::super::dofs::DofMap;
 use super::chains::{MassChains, StretchEntry};
-use crate::model::{FrequencyBound, Masses, Model, NO_SLOT, State, TermFailure};
+use crate::model::{FrequencyBound, Masses, Model, NO_SLOT, State, TermFailure, rounded_up};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
 /// added in block order, so sums do not depend on the thread count.
@@ -986,13 +986,12 @@ fn at_least(m: f64, s: f64) -> f64 {
 
 /// The largest node motion \[mm\] from the per-block largest changes of
 /// one displacement component: `√3` times the largest (a node's motion is
-/// at most that), rounded up (a relative 10⁻¹² and 10⁻¹² mm cover the
-/// round-off of the differences and of the product); `+∞` if not finite.
+/// at most that), rounded up ([`rounded_up`]); `+∞` if not finite.
 fn largest_motion(components: &[f64]) -> f64 {
     let largest = components.iter().fold(0.0_f64, |m, s| at_least(m, *s));
     let motion = largest * 3.0_f64.sqrt();
     if motion.is_finite() {
-        motion * (1.0 + 1e-12) + 1e-12
+        rounded_up(motion)
     } else {
         f64::INFINITY
     }
