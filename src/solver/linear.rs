@@ -24,9 +24,8 @@
 //! with partial pivoting.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::cholesky::{LdltRef, SymbolicCholesky, factorize_symbolic_cholesky};
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::linalg::lu::{LuRef, NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 
@@ -99,7 +98,13 @@ struct Bordered {
 enum Factorisation {
     Lu {
         symbolic: SymbolicLu<usize>,
-        numeric: Option<Lu<usize, f64>>,
+        /// The factors, their storage kept from one factorisation to the
+        /// next (a paper-size forming tangent's factors take hundreds of
+        /// megabytes).
+        numeric: NumericLu<usize, f64>,
+        factorised: bool,
+        /// Scratch of the numeric factorisation and of the solves.
+        buffer: MemBuffer,
         bordered: Option<Box<Bordered>>,
     },
     Ldlt {
@@ -128,19 +133,28 @@ impl SparseSolver {
     ) -> Result<Self, LinearSolverError> {
         let other = |e: &dyn std::fmt::Debug| LinearSolverError::Other(format!("{e:?}"));
         let factorisation = match kind {
-            LinearSolverKind::Lu => match Bordered::new(&pattern) {
-                Some(bordered) => Factorisation::Lu {
-                    symbolic: SymbolicLu::try_new(bordered.block.symbolic())
-                        .map_err(|e| other(&e))?,
-                    numeric: None,
-                    bordered: Some(Box::new(bordered)),
-                },
-                None => Factorisation::Lu {
-                    symbolic: SymbolicLu::try_new(pattern.as_ref()).map_err(|e| other(&e))?,
-                    numeric: None,
-                    bordered: None,
-                },
-            },
+            LinearSolverKind::Lu => {
+                let bordered = Bordered::new(&pattern).map(Box::new);
+                let symbolic = match &bordered {
+                    Some(b) => factorize_symbolic_lu(b.block.symbolic(), Default::default()),
+                    None => factorize_symbolic_lu(pattern.as_ref(), Default::default()),
+                }
+                .map_err(|e| other(&e))?;
+                // The solves take the dense unknowns' columns at once
+                // (`Z = A⁻¹ B`) or one right-hand side.
+                let columns = bordered.as_ref().map_or(1, |b| b.dense.len().max(1));
+                let par = faer::get_global_parallelism();
+                let req = symbolic
+                    .factorize_numeric_lu_scratch::<f64>(par, Default::default())
+                    .or(symbolic.solve_in_place_scratch::<f64>(columns, par));
+                Factorisation::Lu {
+                    symbolic,
+                    numeric: NumericLu::new(),
+                    factorised: false,
+                    buffer: MemBuffer::try_new(req).map_err(|e| other(&e))?,
+                    bordered,
+                }
+            }
             LinearSolverKind::Ldlt => {
                 let symbolic = factorize_symbolic_cholesky(
                     pattern.as_ref(),
@@ -183,23 +197,31 @@ impl SparseSolver {
             Factorisation::Lu {
                 symbolic,
                 numeric,
+                factorised,
+                buffer,
                 bordered,
             } => {
-                *numeric = None;
-                match bordered {
-                    None => {
-                        let lu = Lu::try_new_with_symbolic(symbolic.clone(), self.matrix.as_ref())
-                            .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
-                        *numeric = Some(lu);
-                    }
-                    Some(b) => {
-                        b.split(self.matrix.val());
-                        let lu = Lu::try_new_with_symbolic(symbolic.clone(), b.block.as_ref())
-                            .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
-                        b.schur_complement(&lu)?;
-                        *numeric = Some(lu);
-                    }
+                *factorised = false;
+                // The sparse block of the bordered matrix, or the matrix.
+                if let Some(b) = bordered.as_deref_mut() {
+                    b.split(self.matrix.val());
                 }
+                let sparse = bordered
+                    .as_ref()
+                    .map_or(self.matrix.as_ref(), |b| b.block.as_ref());
+                let lu = symbolic
+                    .factorize_numeric_lu(
+                        numeric,
+                        sparse,
+                        faer::get_global_parallelism(),
+                        MemStack::new(buffer),
+                        Default::default(),
+                    )
+                    .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
+                if let Some(b) = bordered.as_deref_mut() {
+                    b.schur_complement(lu, MemStack::new(buffer))?;
+                }
+                *factorised = true;
             }
             Factorisation::Ldlt {
                 symbolic,
@@ -237,14 +259,19 @@ impl SparseSolver {
         let n = rhs.len();
         match &mut self.factorisation {
             Factorisation::Lu {
-                numeric, bordered, ..
+                symbolic,
+                numeric,
+                factorised,
+                buffer,
+                bordered,
             } => {
-                let lu = numeric
-                    .as_ref()
-                    .ok_or_else(|| LinearSolverError::Other("not factorised".into()))?;
+                if !*factorised {
+                    return Err(LinearSolverError::Other("not factorised".into()));
+                }
+                let lu = LuRef::new_unchecked(symbolic, numeric);
                 match bordered {
-                    None => lu.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1)),
-                    Some(b) => b.solve_in_place(lu, rhs),
+                    None => lu_solve(lu, MatMut::from_column_major_slice_mut(rhs, n, 1), buffer),
+                    Some(b) => b.solve_in_place(lu, rhs, buffer),
                 }
             }
             Factorisation::Ldlt {
@@ -270,6 +297,16 @@ impl SparseSolver {
             Err(LinearSolverError::NonFinite)
         }
     }
+}
+
+/// `rhs ← A⁻¹ rhs` with the LU factors `lu`, in the scratch `buffer`.
+fn lu_solve(lu: LuRef<'_, usize, f64>, rhs: MatMut<'_, f64>, buffer: &mut MemBuffer) {
+    lu.solve_in_place_with_conj(
+        Conj::No,
+        rhs,
+        faer::get_global_parallelism(),
+        MemStack::new(buffer),
+    );
 }
 
 impl Bordered {
@@ -356,11 +393,20 @@ impl Bordered {
     }
 
     /// `Z = A⁻¹ B` and the factorised Schur complement `D − C Z`.
-    fn schur_complement(&mut self, lu: &Lu<usize, f64>) -> Result<(), LinearSolverError> {
+    fn schur_complement(
+        &mut self,
+        lu: LuRef<'_, usize, f64>,
+        stack: &mut MemStack,
+    ) -> Result<(), LinearSolverError> {
         let ns = self.sparse.len();
         let m = self.dense.len();
         self.z.copy_from_slice(&self.right);
-        lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut self.z, ns, m));
+        lu.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut self.z, ns, m),
+            faer::get_global_parallelism(),
+            stack,
+        );
         if !self.z.iter().all(|v| v.is_finite()) {
             return Err(LinearSolverError::Singular(
                 "the sparse block of the bordered LU".into(),
@@ -405,7 +451,12 @@ impl Bordered {
     }
 
     /// Solves the full system in place with the factorised blocks.
-    fn solve_in_place(&mut self, lu: &Lu<usize, f64>, rhs: &mut [f64]) {
+    fn solve_in_place(
+        &mut self,
+        lu: LuRef<'_, usize, f64>,
+        rhs: &mut [f64],
+        buffer: &mut MemBuffer,
+    ) {
         let ns = self.sparse.len();
         let m = self.dense.len();
         // x' = A⁻¹ f.
@@ -413,7 +464,7 @@ impl Bordered {
         for (k, &j) in self.sparse.iter().enumerate() {
             x[k] = rhs[j];
         }
-        lu.solve_in_place(MatMut::from_column_major_slice_mut(x, ns, 1));
+        lu_solve(lu, MatMut::from_column_major_slice_mut(x, ns, 1), buffer);
         // y = S⁻¹ (g − C x').
         let mut y: Vec<f64> = self
             .dense
@@ -499,16 +550,85 @@ mod tests {
         let b: Vec<f64> = (0..n).map(|i| ((i * 37) % 17) as f64 - 8.0).collect();
         let mut x = b.clone();
         solver.solve_in_place(&mut x).unwrap();
-        let mut ax = vec![0.0; n];
+        let error = residual(&pattern, &values, &x, &b);
+        assert!(error < 1e-10, "residual {error}");
+    }
+
+    /// `‖A x − b‖∞` for the CSC matrix `(pattern, values)`.
+    fn residual(
+        pattern: &SymbolicSparseColMat<usize>,
+        values: &[f64],
+        x: &[f64],
+        b: &[f64],
+    ) -> f64 {
+        let mut ax = vec![0.0; b.len()];
         for (j, xj) in x.iter().enumerate() {
             for k in pattern.col_ptr()[j]..pattern.col_ptr()[j + 1] {
                 ax[pattern.row_idx()[k]] += values[k] * xj;
             }
         }
-        let error = ax
-            .iter()
-            .zip(&b)
-            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
-        assert!(error < 1e-10, "residual {error}");
+        ax.iter()
+            .zip(b)
+            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()))
+    }
+
+    /// The LU keeps its factors' storage from one factorisation to the
+    /// next: refactorised with other values (a pivot order that changes,
+    /// too), it solves the new matrix exactly as a fresh solver does, bit
+    /// for bit, with and without bordered dense unknowns.
+    #[test]
+    fn lu_refactorised_with_new_values_solves_as_a_fresh_one() {
+        let n = 300;
+        for dense in [Some(120), None] {
+            // `dense = n`: no dense row, the tridiagonal part alone.
+            let (pattern, values) = bordered_matrix(n, dense.unwrap_or(n));
+            // Other values: the off-diagonal entries grown past the
+            // diagonal's, so that partial pivoting picks other rows.
+            let other: Vec<f64> = pattern
+                .col_ptr()
+                .windows(2)
+                .enumerate()
+                .flat_map(|(j, w)| (w[0]..w[1]).map(move |k| (j, k)))
+                .map(|(j, k)| {
+                    let i = pattern.row_idx()[k];
+                    if i == j {
+                        values[k]
+                    } else {
+                        7.0 * values[k] + 0.5
+                    }
+                })
+                .collect();
+            let b: Vec<f64> = (0..n).map(|i| ((i * 13) % 7) as f64 - 3.0).collect();
+            let mut reused = SparseSolver::new(LinearSolverKind::Lu, pattern.clone()).unwrap();
+            assert_eq!(
+                matches!(
+                    &reused.factorisation,
+                    Factorisation::Lu {
+                        bordered: Some(_),
+                        ..
+                    }
+                ),
+                dense.is_some()
+            );
+            reused.values_mut().copy_from_slice(&values);
+            reused.factorize().unwrap();
+            let mut x = b.clone();
+            reused.solve_in_place(&mut x).unwrap();
+            reused.values_mut().copy_from_slice(&other);
+            reused.factorize().unwrap();
+            let mut x = b.clone();
+            reused.solve_in_place(&mut x).unwrap();
+            let mut fresh = SparseSolver::new(LinearSolverKind::Lu, pattern.clone()).unwrap();
+            fresh.values_mut().copy_from_slice(&other);
+            fresh.factorize().unwrap();
+            let mut y = b.clone();
+            fresh.solve_in_place(&mut y).unwrap();
+            assert_eq!(x, y, "dense unknown {dense:?}");
+            let size = b.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            assert!(
+                residual(&pattern, &other, &x, &b) < 1e-10 * size,
+                "dense unknown {dense:?}"
+            );
+        }
     }
 }
