@@ -1123,3 +1123,39 @@ fn check_finite(x: &[V3; 6], kinds: &[HingeKind; 3]) -> Result<(), BendingError>
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The in-place rank-one updates give the bits of the matrix
+    /// expressions they replace (so the tangent, and every run, is the same
+    /// as with them), on entries of mixed signs and magnitudes.
+    #[test]
+    fn in_place_rank_one_updates_match_the_matrix_expressions_bit_for_bit() {
+        let entry =
+            |k: usize, seed: f64| (seed * (k as f64 + 1.3)).sin() * 10f64.powi(k as i32 % 7 - 3);
+        let x = StencilVector::from_fn(|k, _| entry(k, 0.77));
+        let y = StencilVector::from_fn(|k, _| entry(k, 1.91));
+        let start = StencilMatrix::from_fn(|i, j| entry(i * 18 + j, 0.13));
+        let s = -0.3719;
+        let mut expected = start;
+        expected += x * y.transpose() * s;
+        let mut k = start;
+        add_outer(&mut k, &x, &y, s);
+        assert_eq!(k.as_slice(), expected.as_slice());
+        let mut expected = start;
+        let c = x * y.transpose() * s;
+        expected += c + c.transpose();
+        let mut k = start;
+        add_outer_symmetric(&mut k, &x, &y, s);
+        assert_eq!(k.as_slice(), expected.as_slice());
+        // Without a scale: `s = 1` is exact.
+        let mut expected = start;
+        let product = x * y.transpose();
+        expected += product + product.transpose();
+        let mut k = start;
+        add_outer_symmetric(&mut k, &x, &y, 1.0);
+        assert_eq!(k.as_slice(), expected.as_slice());
+    }
+}
