@@ -219,7 +219,7 @@ impl SparseSolver {
                     )
                     .map_err(|e| LinearSolverError::Singular(format!("{e:?}")))?;
                 if let Some(b) = bordered.as_deref_mut() {
-                    b.schur_complement(lu, MemStack::new(buffer))?;
+                    b.schur_complement(lu, buffer)?;
                 }
                 *factorised = true;
             }
@@ -299,7 +299,8 @@ impl SparseSolver {
     }
 }
 
-/// `rhs ← A⁻¹ rhs` with the LU factors `lu`, in the scratch `buffer`.
+/// `rhs ← A⁻¹ rhs` (one or more columns) with the LU factors `lu`, in the
+/// scratch `buffer`.
 fn lu_solve(lu: LuRef<'_, usize, f64>, rhs: MatMut<'_, f64>, buffer: &mut MemBuffer) {
     lu.solve_in_place_with_conj(
         Conj::No,
@@ -396,16 +397,15 @@ impl Bordered {
     fn schur_complement(
         &mut self,
         lu: LuRef<'_, usize, f64>,
-        stack: &mut MemStack,
+        buffer: &mut MemBuffer,
     ) -> Result<(), LinearSolverError> {
         let ns = self.sparse.len();
         let m = self.dense.len();
         self.z.copy_from_slice(&self.right);
-        lu.solve_in_place_with_conj(
-            Conj::No,
+        lu_solve(
+            lu,
             MatMut::from_column_major_slice_mut(&mut self.z, ns, m),
-            faer::get_global_parallelism(),
-            stack,
+            buffer,
         );
         if !self.z.iter().all(|v| v.is_finite()) {
             return Err(LinearSolverError::Singular(
