@@ -11,8 +11,10 @@ use std::process::Command;
 use nalgebra::Vector2;
 use ncform::case::oat::{DEFAULT_MDZ_SIZE, DEFAULT_THICKNESS, MeshSource};
 use ncform::case::{OatCase, Zone};
-use ncform::cli::run::{Progress, RunSummary, run_case};
 use ncform::mesh::generate::{GridPattern, GridResolution};
+use ncform::report::Progress;
+use ncform::report::files::run_case;
+use ncform::report::oat::RunSummary;
 use ncform::solver::{NewtonParameters, RunStatus};
 use serde_json::Value;
 use tempfile::TempDir;
@@ -551,7 +553,7 @@ fn run_error(case: &OatCase, dir: &Path) -> String {
     let out = dir.join("out");
     let err = run_case(case, &out, Progress::Quiet).expect_err("the run should fail");
     assert!(!out.exists(), "a failed set-up must not write outputs");
-    err
+    err.to_string()
 }
 
 /// docs/meshes.md, docs/cases.md `[mesh]`: a clamp set that the mesh file
@@ -1227,7 +1229,7 @@ fn explicit_45_degree_run_matches_the_quasi_static_one() {
             .sum();
         (sum / reference.len() as f64).sqrt() / peak
     };
-    type Pick = fn(&ncform::cli::run::HistoryRow) -> f64;
+    type Pick = fn(&ncform::report::oat::HistoryRow) -> f64;
     let columns: [(&str, Pick); 4] = [
         ("force", |h| h.force),
         ("E22", |h| h.mdz_e22),

@@ -10,8 +10,9 @@ use std::path::{Path, PathBuf};
 
 use ncform::case::SolverKind;
 use ncform::case::forming::FormingCase;
-use ncform::cli::form::{FormingSummary, run_forming};
-use ncform::cli::run::Progress;
+use ncform::report::Progress;
+use ncform::report::files::run_forming;
+use ncform::report::forming::FormingSummary;
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 

@@ -23,9 +23,10 @@ use fuzz_common::{
 };
 use ncform::case::OatCase;
 use ncform::case::forming::FormingCase;
-use ncform::cli::form::run_forming;
-use ncform::cli::run::{Progress, run_case};
 use ncform::material::MaterialSpec;
+use ncform::report::Progress;
+use ncform::report::files::run_case;
+use ncform::report::files::run_forming;
 
 /// Mutants per seed in `cargo test`.
 const DEFAULT_CASES: usize = 200;
@@ -213,11 +214,15 @@ fn check_run(
     let result = match kind {
         Kind::Oat => match OatCase::load(&case_path) {
             Err(e) => Err(e.to_string()),
-            Ok(case) => run_case(&case, &out, Progress::Quiet).map(|s| format!("{s:?}")),
+            Ok(case) => run_case(&case, &out, Progress::Quiet)
+                .map(|s| format!("{s:?}"))
+                .map_err(|e| e.to_string()),
         },
         Kind::Forming => match FormingCase::load(&case_path) {
             Err(e) => Err(e.to_string()),
-            Ok(case) => run_forming(&case, &out, Progress::Quiet).map(|s| format!("{s:?}")),
+            Ok(case) => run_forming(&case, &out, Progress::Quiet)
+                .map(|s| format!("{s:?}"))
+                .map_err(|e| e.to_string()),
         },
     };
     let ran = result.is_ok();

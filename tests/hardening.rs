@@ -12,9 +12,11 @@ use std::time::Duration;
 use ncform::case::OatCase;
 use ncform::case::forming::FormingCase;
 use ncform::cli::material_curves::write_curves;
-use ncform::cli::run::{Progress, RunSummary, run_case};
 use ncform::material::{GeneralizedTerm, Material, MaterialSpec, OrthotropicSvk, Transition};
 use ncform::post::plot::{Panel, Series, write_panels};
+use ncform::report::Progress;
+use ncform::report::files::run_case;
+use ncform::report::oat::RunSummary;
 use ncform::solver::RunStatus;
 use serde_json::Value;
 use tempfile::TempDir;
@@ -104,7 +106,9 @@ fn assert_finite_json(value: &Value, path: &str) {
 }
 
 fn run(case: OatCase, out: PathBuf) -> Result<RunSummary, String> {
-    within(120, move || run_case(&case, &out, Progress::Quiet))
+    within(120, move || {
+        run_case(&case, &out, Progress::Quiet).map_err(|e| e.to_string())
+    })
 }
 
 /// A parameter file: the named default set with one line replaced.

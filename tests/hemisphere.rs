@@ -10,8 +10,9 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use ncform::case::forming::FormingCase;
-use ncform::cli::form::{FormingSummary, run_forming};
-use ncform::cli::run::Progress;
+use ncform::report::Progress;
+use ncform::report::files::run_forming;
+use ncform::report::forming::FormingSummary;
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 
@@ -465,7 +466,7 @@ fn an_interrupted_explicit_run_writes_the_state_it_reached() {
     let cancel = ncform::solver::CancelToken::new();
     let summary = std::thread::scope(|scope| {
         let run = scope.spawn(|| {
-            ncform::cli::form::run_forming_with(&case, &out, Progress::Quiet, &cancel)
+            ncform::report::files::run_forming_with(&case, &out, Progress::Quiet, &cancel)
                 .unwrap_or_else(|e| panic!("{e}"))
         });
         // The first output state (half the stroke) is written during the

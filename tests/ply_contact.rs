@@ -10,12 +10,13 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 use ncform::case::forming::FormingCase;
-use ncform::cli::form::{FormingSummary, run_forming};
-use ncform::cli::run::Progress;
 use ncform::contact::ply_pair::{
     CandidateLists, closest_candidate, closest_on_triangle, triangle_boxes,
 };
 use ncform::model::{Masses, PlyContact, State, Term};
+use ncform::report::Progress;
+use ncform::report::files::run_forming;
+use ncform::report::forming::FormingSummary;
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 

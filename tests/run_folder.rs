@@ -17,9 +17,10 @@ use std::time::Duration;
 
 use ncform::case::OatCase;
 use ncform::case::forming::FormingCase;
-use ncform::cli::form::{run_forming_in, run_forming_with};
-use ncform::cli::run::{Progress, run_case, run_case_in, run_case_with};
-use ncform::cli::run_folder::{ExitStatus, RunFolder, STATUS_FILE};
+use ncform::report::Progress;
+use ncform::report::files::{run_case, run_case_in, run_case_with};
+use ncform::report::files::{run_forming_in, run_forming_with};
+use ncform::report::folder::{ExitStatus, RunFolder, STATUS_FILE};
 use ncform::solver::{CancelToken, RunStatus};
 use serde_json::Value;
 use tempfile::TempDir;
@@ -175,7 +176,9 @@ fn a_folder_that_is_not_a_run_is_refused_and_an_empty_one_used() {
     let foreign = dir.path().join("mine");
     fs::create_dir(&foreign).unwrap();
     write(&foreign.join("notes.txt"), "my notes");
-    let err = run_case(&case, &foreign, Progress::Quiet).expect_err("must refuse");
+    let err = run_case(&case, &foreign, Progress::Quiet)
+        .expect_err("must refuse")
+        .to_string();
     assert!(
         err.contains("not empty") && err.contains("notes.txt"),
         "{err}"
@@ -200,7 +203,9 @@ fn a_folder_that_is_not_a_run_is_refused_and_an_empty_one_used() {
 
     let file = dir.path().join("a-file");
     write(&file, "x");
-    let err = run_case(&case, &file, Progress::Quiet).expect_err("must refuse");
+    let err = run_case(&case, &file, Progress::Quiet)
+        .expect_err("must refuse")
+        .to_string();
     assert!(err.contains("is a file"), "{err}");
 }
 

@@ -13,8 +13,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use ncform::case::forming::{FormingCase, ToolShape};
-use ncform::cli::form::run_forming;
-use ncform::cli::run::Progress;
+use ncform::report::Progress;
+use ncform::report::files::run_forming;
 use ncform::solver::RunStatus;
 use tempfile::TempDir;
 

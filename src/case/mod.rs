@@ -5,7 +5,10 @@
 pub mod explicit;
 pub mod forming;
 pub mod forming_model;
+pub mod measure;
 pub mod oat;
+pub mod scenario;
 
 pub use explicit::{ExplicitSettings, SolverKind};
 pub use oat::{OatCase, OatModel, Zone};
+pub use scenario::Case;

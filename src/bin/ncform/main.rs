@@ -4,20 +4,17 @@
 //! SIGINT/SIGTERM, 5 some outputs not written.
 
 use std::io::{self, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use ncform::case::OatCase;
-use ncform::case::forming::{FormingCase, is_forming};
-use ncform::cli::form::run_forming_with;
-use ncform::cli::run::{Progress, default_out_dir, run_case_with};
-use ncform::cli::run_folder::ExitStatus;
+use ncform::cli::run::run_command;
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
-use ncform::solver::{CancelToken, RunStatus};
+use ncform::report::ExitStatus;
+use ncform::solver::CancelToken;
 
 /// Forming simulation of dry UD non-crimp fabrics (Schäfer et al. 2024 law).
 /// Units: mm, N, MPa, tonne/mm³, s.
@@ -153,139 +150,12 @@ fn cancel_on_signals() -> CancelToken {
     token
 }
 
-/// The exit of a run: its status, and on stderr what is not as asked,
-/// with the load reached and the load attempted written by `reached` and
-/// `attempted`.
-fn run_exit(
-    status: &RunStatus,
-    exit_status: ExitStatus,
-    reached: impl Fn(f64) -> String,
-    attempted: impl Fn(f64) -> String,
-) -> ExitCode {
-    match status {
-        RunStatus::Complete => {}
-        RunStatus::Incomplete {
-            load_reached,
-            load_attempted,
-            reason,
-        } => eprintln!(
-            "error: the solve failed in the step from {} to {}: {reason}; results up to {} are written and marked incomplete",
-            reached(*load_reached),
-            attempted(*load_attempted),
-            reached(*load_reached)
-        ),
-        RunStatus::Interrupted { load_reached } => eprintln!(
-            "interrupted: results up to {} are written and marked interrupted",
-            reached(*load_reached)
-        ),
-    }
-    if exit_status == ExitStatus::OutputsMissing {
-        eprintln!("error: some outputs could not be written (listed above and in status.json)");
-    }
-    exit(exit_status)
-}
-
-/// `ncform run` for a forming case.
-fn run_forming_case(
-    case: &std::path::Path,
-    out: Option<PathBuf>,
-    quiet: bool,
-) -> Result<ExitCode, String> {
-    let spec = FormingCase::load(case).map_err(|e| e.to_string())?;
-    let out = out.unwrap_or_else(|| default_out_dir(case));
-    let progress = if quiet {
-        Progress::Quiet
-    } else {
-        Progress::auto_programme()
-    };
-    let summary = run_forming_with(&spec, &out, progress, &cancel_on_signals())?;
-    let work = match &summary.explicit {
-        None => format!(
-            "{} steps, {} Newton iterations, {} augmentations",
-            summary.steps, summary.newton_iterations, summary.augmentations
-        ),
-        Some(e) => format!(
-            "explicit: {} increments, max KE/IE {:.2} %, energy balance {:.1e}",
-            e.increments,
-            100.0 * e.max_kinetic_ratio,
-            e.max_relative_balance_error
-        ),
-    };
-    let forces: Vec<String> = summary
-        .history
-        .last()
-        .map(|row| {
-            summary
-                .tools
-                .iter()
-                .zip(&row.tools)
-                .map(|(name, t)| format!("{name}: {:.4} N at {:.3} mm", t.force, t.displacement))
-                .collect()
-        })
-        .unwrap_or_default();
-    report(&spec.title, &work, summary.wall_seconds, &forces, &out);
-    Ok(run_exit(
-        &summary.status,
-        summary.exit_status,
-        |load| format!("programme fraction {load}"),
-        |load| load.to_string(),
-    ))
-}
-
-/// The run's one-line summary (title, work, wall time, the last forces)
-/// and where its results are.
-fn report(title: &str, work: &str, wall_seconds: f64, forces: &[String], out: &Path) {
-    let forces = if forces.is_empty() {
-        String::new()
-    } else {
-        format!("; {}", forces.join(", "))
-    };
-    say!("{title}: {work}, {wall_seconds:.2} s{forces}");
-    say!("results in {}", out.display());
-}
-
 fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.command {
         Command::Run { case, out, quiet } => {
-            let text = std::fs::read_to_string(&case)
-                .map_err(|e| format!("case file '{}': {e}", case.display()))?;
-            if is_forming(&text) {
-                return run_forming_case(&case, out, quiet);
-            }
-            let spec = OatCase::load(&case).map_err(|e| e.to_string())?;
-            let out = out.unwrap_or_else(|| default_out_dir(&case));
-            let progress = if quiet {
-                Progress::Quiet
-            } else {
-                Progress::auto(spec.displacement)
-            };
-            let summary = run_case_with(&spec, &out, progress, &cancel_on_signals())?;
-            let forces: Vec<String> = summary
-                .forces
-                .iter()
-                .map(|(d, f)| format!("{f:.3} N at {d} mm"))
-                .collect();
-            let work = match &summary.explicit {
-                None => format!(
-                    "{} steps, {} Newton iterations",
-                    summary.steps, summary.newton_iterations
-                ),
-                Some(e) => format!(
-                    "explicit: {} increments, {:.1} M element-cycles/s on {} threads, max KE/IE {:.2} %, energy balance {:.1e}",
-                    e.increments,
-                    e.element_cycles_per_second / 1e6,
-                    e.threads,
-                    100.0 * e.max_kinetic_ratio,
-                    e.max_relative_balance_error
-                ),
-            };
-            report(&spec.title, &work, summary.wall_seconds, &forces, &out);
-            Ok(run_exit(
-                &summary.status,
-                summary.exit_status,
-                |d| format!("d = {d} mm"),
-                |d| format!("{d} mm"),
-            ))
+            let status =
+                run_command(&case, out, quiet, &cancel_on_signals()).map_err(|e| e.to_string())?;
+            Ok(exit(status))
         }
         Command::Material { command } => match command {
             MaterialCommand::Eval { params } => {

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::run_folder::Outputs;
+use super::folder::Outputs;
 use crate::post::csv::write_csv;
 use crate::post::plot::{Panel, Series, write_panels};
 use crate::solver::{ExplicitRecord, RunStatus};

@@ -1,0 +1,214 @@
+//! The pictures of a forming run's blanks: the outer contours of every
+//! ply at the output states (`outer_contour.csv`, `.png`) and the maps of
+//! γ, E22, E⊥ and the deformation modes of each ply, as the camera sees it
+//! (`maps/`; `docs/forming.md`, "Outputs").
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::history::status_line;
+use super::readout::Readout;
+use crate::case::forming::{FormingCase, MapView};
+use crate::case::forming_model::FormingModel;
+use crate::post::contour::{ContourMap, write_contour_png_viewed};
+use crate::post::csv::write_csv;
+use crate::post::fields::ElementFields;
+use crate::post::forming::StrainMeasures;
+use crate::post::plot::{Series as Outline, write_outlines_png};
+use crate::report::folder::Outputs;
+use crate::report::{io_err, plot_suffix};
+use crate::solver::RunStatus;
+
+/// The outer contours of every ply at the output states.
+#[derive(Debug, Clone, Serialize)]
+pub struct OutlineState {
+    /// Programme fraction.
+    pub load: f64,
+    /// Stroke \[mm\] (the stroke tool's displacement, or `λ` without one).
+    pub stroke: f64,
+    /// Per ply, the contour points projected on the blank plane \[mm\].
+    #[serde(skip)]
+    pub outlines: Vec<Vec<[f64; 2]>>,
+}
+
+/// `outer_contour.csv` and `outer_contour.png`: every ply's outer contour
+/// at every output state, with the reference blank; `labels`: the files'
+/// status line and the stroke's name. Each file is recorded in `files`,
+/// whatever became of the other.
+pub fn write_outer_contours(
+    case: &FormingCase,
+    built: &FormingModel,
+    readout: &Readout,
+    states: &[OutlineState],
+    out: &Path,
+    (status, stroke_label): (&RunStatus, &str),
+    files: &mut Outputs,
+) {
+    let reference = readout.reference_outlines();
+    let labels = readout.outline_labels(built);
+    let mut header = vec![
+        "ply [-]".to_string(),
+        "node [-]".to_string(),
+        "reference x [mm]".into(),
+        "reference y [mm]".into(),
+    ];
+    for s in states {
+        header.push(format!("x at {stroke_label} = {:.3} [mm]", s.stroke));
+        header.push(format!("y at {stroke_label} = {:.3} [mm]", s.stroke));
+    }
+    let mut rows = Vec::new();
+    for (p, outline) in reference.iter().enumerate() {
+        for (k, x0) in outline.iter().enumerate() {
+            let mut row = vec![(p + 1) as f64, labels[p][k] as f64, x0[0], x0[1]];
+            for s in states {
+                row.extend(s.outlines[p][k]);
+            }
+            rows.push(row);
+        }
+    }
+    let path = out.join("outer_contour.csv");
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    let plies: Vec<String> = built
+        .plies
+        .iter()
+        .enumerate()
+        .map(|(i, p)| format!("{} = \"{}\"", i + 1, p.name))
+        .collect();
+    let written = write_csv(
+        &path,
+        &[
+            "ncform run: outer contour of each ply, projected on the blank plane (z dropped), in order along the boundary".to_string(),
+            format!("case: {} ({})", case.title, case.source),
+            status_line(status),
+            format!("plies: {}", plies.join(", ")),
+            "units: mm".into(),
+        ],
+        &header_refs,
+        &rows,
+    )
+    .map_err(|e| io_err(&path, e));
+    files.record(&path, written);
+    let mut outlines = Vec::new();
+    for (p, ply) in built.plies.iter().enumerate() {
+        let name = if built.plies.len() > 1 {
+            format!("{}: ", ply.name)
+        } else {
+            String::new()
+        };
+        outlines.push(Outline {
+            label: format!("{name}blank"),
+            points: reference[p].iter().map(|x| (x[0], x[1])).collect(),
+        });
+        for s in states {
+            outlines.push(Outline {
+                label: format!("{name}{stroke_label} = {:.1} mm", s.stroke),
+                points: s.outlines[p].iter().map(|x| (x[0], x[1])).collect(),
+            });
+        }
+    }
+    let incomplete = plot_suffix(status);
+    let path = out.join("outer_contour.png");
+    let written = write_outlines_png(
+        &path,
+        &format!("outer contour, seen from above{incomplete}"),
+        &outlines,
+        900,
+    );
+    files.record(&path, written);
+}
+
+/// `maps/<ply>_NNNN.png` (γ, E22, E⊥ of the formed ply),
+/// `maps/<ply>-dic_NNNN.png` (the same recomputed on the projection) and
+/// `maps/<ply>-modes_NNNN.png` (the deformation modes) of ply `p` of the
+/// case `(case, built, p)`, as `case.camera` sees the ply; each recorded
+/// in `files`, whatever became of the others.
+#[allow(clippy::too_many_arguments)]
+pub fn write_maps(
+    (case, built, p): (&FormingCase, &FormingModel, usize),
+    u: &[f64],
+    fields: &[ElementFields],
+    dic: &[Option<StrainMeasures>],
+    modes: &[u8],
+    paths: (&Path, &Path, &Path),
+    caption: &str,
+    files: &mut Outputs,
+) {
+    let ply = &built.plies[p];
+    let offset = ply.node_offset;
+    let points: Vec<[f64; 2]> = ply
+        .deformed_positions(u)
+        .iter()
+        .map(|x| [x[0], x[1]])
+        .collect();
+    // Painter's order for the camera: the triangles farthest from it first.
+    let height = |e: usize| {
+        ply.mesh.triangles[e]
+            .iter()
+            .map(|&n| ply.mesh.nodes[n].z + u[3 * (offset + n) + 2])
+            .sum::<f64>()
+    };
+    let mut order: Vec<usize> = (0..ply.mesh.triangles.len()).collect();
+    let heights: Vec<f64> = order.iter().map(|&e| height(e)).collect();
+    match case.camera {
+        MapView::Below => order.sort_by(|a, b| heights[*b].total_cmp(&heights[*a])),
+        MapView::Above => order.sort_by(|a, b| heights[*a].total_cmp(&heights[*b])),
+    }
+    let triangles: Vec<[usize; 3]> = order.iter().map(|&e| ply.mesh.triangles[e]).collect();
+    let view = match case.camera {
+        MapView::Below => "from below",
+        MapView::Above => "from above",
+    };
+    // γ, E22, E⊥ in drawing order; NaN (grey) where not defined.
+    let columns = |measure: &dyn Fn(usize) -> Option<StrainMeasures>| -> [Vec<f64>; 3] {
+        let pick = |f: fn(&StrainMeasures) -> f64| {
+            order
+                .iter()
+                .map(|&e| measure(e).as_ref().map_or(f64::NAN, f))
+                .collect()
+        };
+        [
+            pick(|m| m.shear_angle_deg),
+            pick(|m| m.e22),
+            pick(|m| m.e_perp),
+        ]
+    };
+    let true_values = columns(&|e| {
+        Some(StrainMeasures {
+            shear_angle_deg: fields[e].shear_angle_deg,
+            e22: fields[e].e22,
+            e_perp: fields[e].e_perp,
+        })
+    });
+    let dic_values = columns(&|e| dic[e]);
+    let labels = ["γ [deg]", "E22 = I8 − 1 [-]", "E⊥ = I11 − 1 [-]"];
+    let names = ["γ", "E22", "E⊥"];
+    for (values, path, what) in [
+        (&true_values, paths.0, "formed ply"),
+        (&dic_values, paths.1, "2D DIC view"),
+    ] {
+        let maps: Vec<ContourMap> = (0..3)
+            .map(|k| ContourMap {
+                title: format!("{}: {what}, {view}, {caption}", names[k]),
+                points: &points,
+                triangles: &triangles,
+                values: &values[k],
+                label: labels[k].into(),
+                range: None,
+            })
+            .collect();
+        let written = write_contour_png_viewed(path, &maps, (2100, 720), case.camera);
+        files.record(path, written);
+    }
+    let mode_values: Vec<f64> = order.iter().map(|&e| f64::from(modes[e])).collect();
+    let map = ContourMap {
+        title: format!("deformation mode: formed ply, {view}, {caption}"),
+        points: &points,
+        triangles: &triangles,
+        values: &mode_values,
+        label: "mode: 0 none, 1 I11<1 I8≤1, 2 I11<1 I8>1, 3 I11≥1 I8>1, 4 I11≥1 I8≤1".into(),
+        range: Some((0.0, 4.0)),
+    };
+    let written = write_contour_png_viewed(paths.2, &[map], (900, 720), case.camera);
+    files.record(paths.2, written);
+}
