@@ -919,7 +919,7 @@ fn write_contours(built: &OatModel, path: &Path, snap: &Snapshot) -> Result<(), 
             range: percentile_range(v, 0.005),
         })
         .collect();
-    write_contour_png(path, &maps, (1800, 1100))
+    write_contour_png(path, &maps, (1800, 1100)).map_err(String::from)
 }
 
 /// The `[q, 1 − q]` quantiles of the finite values, or `None` when they are

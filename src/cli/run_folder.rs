@@ -197,11 +197,11 @@ impl Outputs {
     }
 
     /// Records the outcome of writing `path`: its size when `result` is
-    /// `Ok`, else a missing output, reported on stderr. Returns whether it
-    /// was written.
-    pub fn record(&mut self, path: &Path, result: Result<(), String>) -> bool {
+    /// `Ok`, else a missing output (the error's Display text), reported on
+    /// stderr. Returns whether it was written.
+    pub fn record<E: std::fmt::Display>(&mut self, path: &Path, result: Result<(), E>) -> bool {
         let rel = self.relative(path);
-        match result.and_then(|()| {
+        match result.map_err(|e| e.to_string()).and_then(|()| {
             std::fs::metadata(path)
                 .map(|m| m.len())
                 .map_err(|e| format!("{}: {e}", path.display()))
