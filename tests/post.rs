@@ -447,7 +447,9 @@ fn contour_png_has_requested_size() {
     }
     // Too small for two maps with axes and colour bars: an error, no panic.
     let path = dir.path().join("tiny.png");
-    let err = write_contour_png(&path, &[map.clone(), map], (300, 200)).unwrap_err();
+    let err = write_contour_png(&path, &[map.clone(), map], (300, 200))
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("tiny.png") && err.contains("too small"),
         "{err}"
@@ -678,7 +680,9 @@ fn contour_rejects_inconsistent_maps_naming_file() {
         label: String::new(),
         range: None,
     };
-    let err = write_contour_png(&path, &[map], (600, 600)).unwrap_err();
+    let err = write_contour_png(&path, &[map], (600, 600))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("bad.png") && err.contains("short"), "{err}");
     let values = vec![0.0; m.triangles.len()];
     let map = ContourMap {
@@ -689,6 +693,8 @@ fn contour_rejects_inconsistent_maps_naming_file() {
         label: String::new(),
         range: Some((1.0, 1.0)),
     };
-    let err = write_contour_png(&path, &[map], (600, 600)).unwrap_err();
+    let err = write_contour_png(&path, &[map], (600, 600))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("bad range"), "{err}");
 }

@@ -20,7 +20,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::post::plot::ensure_font;
+use crate::post::plot::{PlotError, ensure_font};
 
 /// The colour of a triangle whose value is not finite.
 pub const NO_VALUE_GREY: [u8; 3] = [150, 150, 150];
@@ -134,13 +134,14 @@ fn colour_of(value: f64, (lo, hi): (f64, f64)) -> [u8; 3] {
 }
 
 /// The colour-bar range of a map: its own, or that of the finite values.
-fn value_range(map: &ContourMap) -> Result<(f64, f64), String> {
+fn value_range(map: &ContourMap) -> Result<(f64, f64), PlotError> {
     if let Some((lo, hi)) = map.range {
         if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-            return Err(format!(
-                "map \"{}\": the range ({lo}, {hi}) is not an increasing finite pair",
-                map.title
-            ));
+            return Err(PlotError::BadRange {
+                title: map.title.clone(),
+                lo,
+                hi,
+            });
         }
         return Ok((lo, hi));
     }
@@ -256,12 +257,13 @@ const FONT_DESC: u32 = 16;
 /// bounding box padded by 3 %) centred with its colour bar.
 ///
 /// # Errors
-/// A message naming the map when its data are inconsistent (values and
+/// A [`PlotError`] naming the map when its data are inconsistent (values and
 /// triangles of different lengths, an index past the points, a point that is
-/// not finite, a range that is not increasing) or the picture is too small.
-pub fn contour_layout(maps: &[ContourMap], size: (u32, u32)) -> Result<Vec<MapFrame>, String> {
+/// not finite, a range that is not increasing) or the picture is too small
+/// ([`PlotError::NoMap`] when there is no map).
+pub fn contour_layout(maps: &[ContourMap], size: (u32, u32)) -> Result<Vec<MapFrame>, PlotError> {
     if maps.is_empty() {
-        return Err("no map to draw".into());
+        return Err(PlotError::NoMap);
     }
     let (w, h) = (size.0 as i32, size.1 as i32);
     let n = maps.len() as i32;
@@ -274,10 +276,12 @@ pub fn contour_layout(maps: &[ContourMap], size: (u32, u32)) -> Result<Vec<MapFr
         let aw = avail_w - Y_LABEL_AREA - BAR_GAP - BAR_W - BAR_LABEL_AREA;
         let ah = h - TITLE_H - MARGIN - X_LABEL_AREA;
         if aw < 40 || ah < 40 {
-            return Err(format!(
-                "map \"{}\": a picture of {}×{} px is too small for {} map(s)",
-                map.title, size.0, size.1, n
-            ));
+            return Err(PlotError::TooSmall {
+                title: map.title.clone(),
+                width: size.0,
+                height: size.1,
+                maps: maps.len(),
+            });
         }
         let (bx, by) = bounding_box(map);
         let pad = 0.03 * (bx.1 - bx.0).max(by.1 - by.0);
@@ -312,14 +316,13 @@ pub fn contour_layout(maps: &[ContourMap], size: (u32, u32)) -> Result<Vec<MapFr
     Ok(frames)
 }
 
-fn check_map(map: &ContourMap) -> Result<(), String> {
+fn check_map(map: &ContourMap) -> Result<(), PlotError> {
     if map.values.len() != map.triangles.len() {
-        return Err(format!(
-            "map \"{}\": {} values for {} triangles",
-            map.title,
-            map.values.len(),
-            map.triangles.len()
-        ));
+        return Err(PlotError::ValueCount {
+            title: map.title.clone(),
+            values: map.values.len(),
+            triangles: map.triangles.len(),
+        });
     }
     let n = map.points.len();
     if let Some(i) = map
@@ -327,14 +330,19 @@ fn check_map(map: &ContourMap) -> Result<(), String> {
         .iter()
         .position(|p| !(p[0].is_finite() && p[1].is_finite()))
     {
-        return Err(format!("map \"{}\": point {i} is not finite", map.title));
+        return Err(PlotError::PointNotFinite {
+            title: map.title.clone(),
+            point: i,
+        });
     }
     for (e, t) in map.triangles.iter().enumerate() {
         if let Some(&k) = t.iter().find(|&&k| k >= n) {
-            return Err(format!(
-                "map \"{}\": triangle {e} refers to point {k}, but there are {n} points",
-                map.title
-            ));
+            return Err(PlotError::PointOutOfRange {
+                title: map.title.clone(),
+                triangle: e,
+                point: k,
+                points: n,
+            });
         }
     }
     Ok(())
@@ -461,9 +469,14 @@ fn bar_image(frame: &MapFrame) -> Vec<u8> {
 /// the map's label (see [`contour_layout`] for where things go).
 ///
 /// # Errors
-/// A message naming the file when a map's data are inconsistent (see
-/// [`contour_layout`]) or drawing or writing fails.
-pub fn write_contour_png(path: &Path, maps: &[ContourMap], size: (u32, u32)) -> Result<(), String> {
+/// A [`PlotError`] naming the file when a map's data are inconsistent
+/// ([`PlotError::Layout`], see [`contour_layout`]) or drawing or writing
+/// fails ([`PlotError::ContourMap`]).
+pub fn write_contour_png(
+    path: &Path,
+    maps: &[ContourMap],
+    size: (u32, u32),
+) -> Result<(), PlotError> {
     write_contour_png_viewed(path, maps, size, MapView::Above)
 }
 
@@ -490,7 +503,7 @@ pub fn write_contour_png_viewed(
     maps: &[ContourMap],
     size: (u32, u32),
     view: MapView,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let mirrored_points: Vec<Vec<[f64; 2]>>;
     let mirrored: Vec<ContourMap>;
     let maps = match view {
@@ -512,9 +525,14 @@ pub fn write_contour_png_viewed(
         }
     };
     ensure_font();
-    let frames = contour_layout(maps, size).map_err(|e| format!("{}: {e}", path.display()))?;
-    let fail =
-        |e: &dyn std::fmt::Display| format!("{}: cannot draw contour map: {e}", path.display());
+    let frames = contour_layout(maps, size).map_err(|e| PlotError::Layout {
+        path: path.to_path_buf(),
+        error: Box::new(e),
+    })?;
+    let fail = |e: &dyn std::fmt::Display| PlotError::ContourMap {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let root = BitMapBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {

@@ -1,7 +1,7 @@
 //! PNG line plots with an embedded font (DejaVu Sans), so pictures render
 //! the same on any machine without system fonts.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::prelude::*;
@@ -9,6 +9,100 @@ use plotters::style::{FontStyle, register_font};
 
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
+
+/// Why a PNG plot or contour map was not written. The Display texts name
+/// the file (or the map) and say what failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// Drawing or writing a line plot failed.
+    #[error("{}: cannot draw plot: {message}", .path.display())]
+    Plot {
+        /// The PNG file.
+        path: PathBuf,
+        /// The drawing backend's message.
+        message: String,
+    },
+    /// Drawing or writing a contour map failed.
+    #[error("{}: cannot draw contour map: {message}", .path.display())]
+    ContourMap {
+        /// The PNG file.
+        path: PathBuf,
+        /// The drawing backend's message.
+        message: String,
+    },
+    /// The maps of a contour picture cannot be laid out (`error` says why).
+    #[error("{}: {error}", .path.display())]
+    Layout {
+        /// The PNG file.
+        path: PathBuf,
+        /// What is wrong with the maps or the picture's size.
+        error: Box<PlotError>,
+    },
+    /// A contour picture without maps.
+    #[error("no map to draw")]
+    NoMap,
+    /// A map's colour-bar range is not an increasing finite pair.
+    #[error("map \"{title}\": the range ({lo}, {hi}) is not an increasing finite pair")]
+    BadRange {
+        /// The map's title.
+        title: String,
+        /// The range's lower end.
+        lo: f64,
+        /// The range's upper end.
+        hi: f64,
+    },
+    /// The picture leaves too little room for a map's axes and colour bar.
+    #[error("map \"{title}\": a picture of {width}×{height} px is too small for {maps} map(s)")]
+    TooSmall {
+        /// The map's title.
+        title: String,
+        /// The picture's width in pixels.
+        width: u32,
+        /// The picture's height in pixels.
+        height: u32,
+        /// The number of maps side by side.
+        maps: usize,
+    },
+    /// A map has not one value per triangle.
+    #[error("map \"{title}\": {values} values for {triangles} triangles")]
+    ValueCount {
+        /// The map's title.
+        title: String,
+        /// The number of values.
+        values: usize,
+        /// The number of triangles.
+        triangles: usize,
+    },
+    /// A map's point is not finite.
+    #[error("map \"{title}\": point {point} is not finite")]
+    PointNotFinite {
+        /// The map's title.
+        title: String,
+        /// The point's index.
+        point: usize,
+    },
+    /// A map's triangle refers to a point past the end of the points.
+    #[error(
+        "map \"{title}\": triangle {triangle} refers to point {point}, but there are {points} points"
+    )]
+    PointOutOfRange {
+        /// The map's title.
+        title: String,
+        /// The triangle's index.
+        triangle: usize,
+        /// The index it refers to.
+        point: usize,
+        /// The number of points.
+        points: usize,
+    },
+}
+
+impl From<PlotError> for String {
+    /// The error's message, for callers whose errors are strings.
+    fn from(error: PlotError) -> Self {
+        error.to_string()
+    }
+}
 
 pub(crate) fn ensure_font() {
     REGISTER.call_once(|| {
@@ -74,15 +168,18 @@ fn tick_label(value: f64, span: f64) -> String {
 /// `width × height` pixels.
 ///
 /// # Errors
-/// A message naming the file when drawing or writing fails.
+/// [`PlotError::Plot`], naming the file, when drawing or writing fails.
 pub fn write_panels(
     path: &Path,
     panels: &[Panel],
     (rows, cols): (usize, usize),
     (width, height): (u32, u32),
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font();
-    let fail = |e: &dyn std::fmt::Display| format!("{}: cannot draw plot: {e}", path.display());
+    let fail = |e: &dyn std::fmt::Display| PlotError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let areas = root.split_evenly((rows, cols));
@@ -173,15 +270,18 @@ fn draw_panel<DB: DrawingBackend>(
 /// middle of the picture (which outer contours leave free).
 ///
 /// # Errors
-/// A message naming the file when drawing or writing fails.
+/// [`PlotError::Plot`], naming the file, when drawing or writing fails.
 pub fn write_outlines_png(
     path: &Path,
     title: &str,
     outlines: &[Series],
     size: u32,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font();
-    let fail = |e: &dyn std::fmt::Display| format!("{}: cannot draw plot: {e}", path.display());
+    let fail = |e: &dyn std::fmt::Display| PlotError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let root = BitMapBackend::new(path, (size, size)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let mut x = (f64::INFINITY, f64::NEG_INFINITY);

@@ -26,7 +26,7 @@ use crate::case::{ExplicitSettings, OatCase, OatModel, SolverKind};
 use crate::post::contour::{ContourMap, write_contour_png};
 use crate::post::csv::write_csv;
 use crate::post::fields::{ElementFields, FieldColumns, element_fields};
-use crate::post::plot::{Panel, Series, write_panels};
+use crate::post::plot::{Panel, PlotError, Series, write_panels};
 use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
 use crate::solver::explicit::{Energies, MassSummary};
 use crate::solver::{ExplicitRecord, RunStatus};
@@ -634,7 +634,7 @@ fn write_histories(
 }
 
 /// `contours.png` at `path`.
-fn write_contours(built: &OatModel, path: &Path, snap: &ContourState) -> Result<(), String> {
+fn write_contours(built: &OatModel, path: &Path, snap: &ContourState) -> Result<(), PlotError> {
     let points: Vec<[f64; 2]> = built
         .mesh
         .nodes

@@ -120,7 +120,7 @@ pub struct ExplicitParameters {
 
 /// Default of [`ExplicitParameters::max_increments`]: 25 times the
 /// increments of the largest bench (the paper-size [0°/90°] hemisphere,
-/// about 400,000; `docs/benchmarks.md`).
+/// about 400,000; `docs/history.md`).
 pub const DEFAULT_MAX_INCREMENTS: usize = 10_000_000;
 
 impl ExplicitParameters {
