@@ -176,9 +176,7 @@ fn run_to_folder(
     cancel: &CancelToken,
 ) -> Result<FolderSummary, RunError> {
     run(case, &mut report, &mut progress, cancel)?;
-    report
-        .into_summary()
-        .ok_or_else(|| RunError::Folder("the run ended without a summary".into()))
+    report.into_summary().ok_or(RunError::NoSummary("none"))
 }
 
 /// Runs an OAT into the folder `out` (prepared after the set-up: an
@@ -283,13 +281,13 @@ pub fn run_forming_in(
 fn oat_summary(summary: FolderSummary) -> Result<RunSummary, RunError> {
     match summary {
         FolderSummary::Oat(s) => Ok(*s),
-        FolderSummary::Forming(_) => Err(RunError::Folder("not an OAT summary".into())),
+        FolderSummary::Forming(_) => Err(RunError::NoSummary("a forming summary, not an OAT's")),
     }
 }
 
 fn forming_summary(summary: FolderSummary) -> Result<FormingSummary, RunError> {
     match summary {
         FolderSummary::Forming(s) => Ok(*s),
-        FolderSummary::Oat(_) => Err(RunError::Folder("not a forming summary".into())),
+        FolderSummary::Oat(_) => Err(RunError::NoSummary("an OAT summary, not a forming run's")),
     }
 }

@@ -260,6 +260,70 @@ fn now() -> String {
     humantime::format_rfc3339_seconds(SystemTime::now()).to_string()
 }
 
+/// Why an output folder cannot take a run. The messages name the folder
+/// and say what to do.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum FolderError {
+    /// `--out` names a file.
+    #[error("output folder '{0}' is a file, not a folder; choose another --out")]
+    IsAFile(String),
+    /// A folder with other files and no ncform run.
+    #[error(
+        "output folder '{folder}' is not empty ('{entry}', …) and holds no ncform run (no {STATUS_FILE}); ncform never deletes files it did not write: choose another --out, or empty the folder"
+    )]
+    Foreign {
+        /// The folder.
+        folder: String,
+        /// One of its entries.
+        entry: String,
+    },
+    /// A run still going on in the folder.
+    #[error(
+        "output folder '{folder}' holds a run still going on (process {pid}, {STATUS_FILE} says running); wait for it or choose another --out"
+    )]
+    StillRunning {
+        /// The folder.
+        folder: String,
+        /// The process of the run.
+        pid: u32,
+    },
+    /// The earlier run could not be moved aside.
+    #[error(
+        "output folder '{folder}' holds an earlier run that could not be moved aside to '{aside}': {error}"
+    )]
+    NotMovedAside {
+        /// The folder.
+        folder: String,
+        /// Where it was to go.
+        aside: String,
+        /// Why it could not.
+        error: String,
+    },
+    /// The earlier run cannot be moved aside from a path without a name.
+    #[error(
+        "output folder '{0}' holds an earlier run, which cannot be moved aside from a path without a folder name; give --out a named folder"
+    )]
+    Unnamed(String),
+    /// Every name for an earlier run beside the folder is taken.
+    #[error(
+        "output folder '{folder}': {MAX_PREVIOUS} earlier runs are already moved aside beside it ('{name}.previous*'); delete some or choose another --out"
+    )]
+    TooManyPrevious {
+        /// The folder.
+        folder: String,
+        /// Its name.
+        name: String,
+    },
+    /// A file-system error on the folder, a subfolder or its status file.
+    #[error("output folder '{folder}': {error}")]
+    Io {
+        /// The folder (or subfolder).
+        folder: String,
+        /// The error.
+        error: String,
+    },
+}
+
 /// What an existing folder holds.
 enum Existing {
     /// Nothing: use it.
@@ -271,9 +335,12 @@ enum Existing {
 }
 
 /// Looks at the folder `out` (which exists and is a directory).
-fn inspect(out: &Path) -> Result<Existing, String> {
+fn inspect(out: &Path) -> Result<Existing, FolderError> {
     let mut entries = std::fs::read_dir(out)
-        .map_err(|e| format!("output folder '{}': {e}", out.display()))?
+        .map_err(|e| FolderError::Io {
+            folder: out.display().to_string(),
+            error: e.to_string(),
+        })?
         .filter_map(Result::ok);
     let Some(first) = entries.next() else {
         return Ok(Existing::Empty);
@@ -307,13 +374,10 @@ fn process_alive(pid: u32) -> bool {
 }
 
 /// The first free `<out>.previous`, `<out>.previous-2`, … beside `out`.
-fn previous_path(out: &Path) -> Result<PathBuf, String> {
-    let name = out.file_name().ok_or_else(|| {
-        format!(
-            "output folder '{}' holds an earlier run, which cannot be moved aside from a path without a folder name; give --out a named folder",
-            out.display()
-        )
-    })?;
+fn previous_path(out: &Path) -> Result<PathBuf, FolderError> {
+    let name = out
+        .file_name()
+        .ok_or_else(|| FolderError::Unnamed(out.display().to_string()))?;
     for k in 1..=MAX_PREVIOUS {
         let mut candidate = name.to_os_string();
         if k == 1 {
@@ -326,11 +390,10 @@ fn previous_path(out: &Path) -> Result<PathBuf, String> {
             return Ok(path);
         }
     }
-    Err(format!(
-        "output folder '{}': {MAX_PREVIOUS} earlier runs are already moved aside beside it ('{}.previous*'); delete some or choose another --out",
-        out.display(),
-        name.to_string_lossy()
-    ))
+    Err(FolderError::TooManyPrevious {
+        folder: out.display().to_string(),
+        name: name.to_string_lossy().into_owned(),
+    })
 }
 
 /// Writes `text` to `path` atomically: into a file beside it, then renamed.
@@ -351,39 +414,39 @@ impl RunFolder {
     /// # Errors
     /// A folder that is not empty and holds no ncform run, a run still
     /// going on in it, or a file-system error, naming the path.
-    pub fn prepare(out: &Path, case: &str, title: &str, subdirs: &[&str]) -> Result<Self, String> {
+    pub fn prepare(
+        out: &Path,
+        case: &str,
+        title: &str,
+        subdirs: &[&str],
+    ) -> Result<Self, FolderError> {
         let mut previous_run = None;
         match std::fs::metadata(out) {
             Ok(meta) if !meta.is_dir() => {
-                return Err(format!(
-                    "output folder '{}' is a file, not a folder; choose another --out",
-                    out.display()
-                ));
+                return Err(FolderError::IsAFile(out.display().to_string()));
             }
             Ok(_) => match inspect(out)? {
                 Existing::Empty => {}
                 Existing::Foreign(entry) => {
-                    return Err(format!(
-                        "output folder '{}' is not empty ('{entry}', …) and holds no ncform run (no {STATUS_FILE}); ncform never deletes files it did not write: choose another --out, or empty the folder",
-                        out.display()
-                    ));
+                    return Err(FolderError::Foreign {
+                        folder: out.display().to_string(),
+                        entry,
+                    });
                 }
                 Existing::Run {
                     running_pid: Some(pid),
                 } if process_alive(pid) => {
-                    return Err(format!(
-                        "output folder '{}' holds a run still going on (process {pid}, {STATUS_FILE} says running); wait for it or choose another --out",
-                        out.display()
-                    ));
+                    return Err(FolderError::StillRunning {
+                        folder: out.display().to_string(),
+                        pid,
+                    });
                 }
                 Existing::Run { .. } => {
                     let aside = previous_path(out)?;
-                    std::fs::rename(out, &aside).map_err(|e| {
-                        format!(
-                            "output folder '{}' holds an earlier run that could not be moved aside to '{}': {e}",
-                            out.display(),
-                            aside.display()
-                        )
+                    std::fs::rename(out, &aside).map_err(|e| FolderError::NotMovedAside {
+                        folder: out.display().to_string(),
+                        aside: aside.display().to_string(),
+                        error: e.to_string(),
                     })?;
                     eprintln!(
                         "note: the earlier run in {} was moved to {}",
@@ -396,8 +459,10 @@ impl RunFolder {
             Err(_) => {}
         }
         for dir in std::iter::once(out.to_path_buf()).chain(subdirs.iter().map(|d| out.join(d))) {
-            std::fs::create_dir_all(&dir)
-                .map_err(|e| format!("output folder '{}': {e}", dir.display()))?;
+            std::fs::create_dir_all(&dir).map_err(|e| FolderError::Io {
+                folder: dir.display().to_string(),
+                error: e.to_string(),
+            })?;
         }
         let folder = Self {
             status: StatusFile {
@@ -419,11 +484,9 @@ impl RunFolder {
             },
             outputs: Outputs::new(out),
         };
-        folder.write_status().map_err(|e| {
-            format!(
-                "output folder '{}': cannot write {STATUS_FILE}: {e}",
-                out.display()
-            )
+        folder.write_status().map_err(|e| FolderError::Io {
+            folder: out.display().to_string(),
+            error: format!("cannot write {STATUS_FILE}: {e}"),
         })?;
         Ok(folder)
     }
@@ -474,18 +537,6 @@ impl RunFolder {
         self.status.status = FolderStatus::Failed;
         self.status.error = Some(error.to_string());
         self.close(ExitStatus::BadInput);
-    }
-
-    /// `result`, with its error (a set-up error) written to `status.json`
-    /// as `failed` ([`RunFolder::fail`]).
-    ///
-    /// # Errors
-    /// The error of `result`.
-    pub fn failed_on_error<T>(&mut self, result: Result<T, String>) -> Result<T, String> {
-        if let Err(e) = &result {
-            self.fail(e);
-        }
-        result
     }
 
     fn close(&mut self, exit: ExitStatus) -> ExitStatus {

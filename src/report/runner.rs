@@ -161,10 +161,13 @@ pub enum RunError {
     /// The blank's readout could not be set up (a ply without a boundary,
     /// a zone without an element), naming the case file and the item.
     #[error("{0}")]
-    Readout(String),
+    Readout(#[from] super::forming::readout::ReadoutError),
     /// The output folder could not be prepared, naming the path.
     #[error("{0}")]
-    Folder(String),
+    Folder(#[from] super::folder::FolderError),
+    /// A report ended without the summary its caller asked for.
+    #[error("the run ended without a summary of the kind asked for ({0})")]
+    NoSummary(&'static str),
     /// The explicit OAT has no mass: `material.areal_mass` is needed.
     #[error("{source_file}: the explicit solver needs material.areal_mass")]
     NoMass {
@@ -452,7 +455,7 @@ fn run_forming(
     let built = case.build().map_err(RunError::Build).and_then(|built| {
         Readout::new(case, &built)
             .map(|readout| (built, readout))
-            .map_err(RunError::Readout)
+            .map_err(RunError::from)
     });
     let (mut built, readout) = reported(report, built)?;
     let dofs = built.dofs();

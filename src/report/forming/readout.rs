@@ -13,6 +13,43 @@ use crate::post::forming::{
     mode_areas, outer_boundary, strain_measure, strain_measures, weighted_mean_std,
 };
 
+/// Why the blanks' readout cannot be set up.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum ReadoutError {
+    /// A ply's mesh has no boundary.
+    #[error(
+        "{source_file}: ply \"{ply}\": the mesh has no boundary, so no outer contour or draw-in"
+    )]
+    NoBoundary {
+        /// The case file.
+        source_file: String,
+        /// The ply.
+        ply: String,
+    },
+    /// A zone holds no element of its ply.
+    #[error(
+        "{source_file}: zone[{index}] (\"{zone}\"): no element of ply \"{ply}\" has its centroid in the window centred at [{x}, {y}] mm of size [{width}, {height}] mm; expected a window on the blank"
+    )]
+    EmptyZone {
+        /// The case file.
+        source_file: String,
+        /// The zone's index in the case.
+        index: usize,
+        /// Its name.
+        zone: String,
+        /// Its ply.
+        ply: String,
+        /// Its centre \[mm\].
+        x: f64,
+        /// Its centre \[mm\].
+        y: f64,
+        /// Its size \[mm\].
+        width: f64,
+        /// Its size \[mm\].
+        height: f64,
+    },
+}
+
 /// One ply's blank: its outer boundary and draw-in points.
 struct PlyBlank {
     offset: usize,
@@ -57,15 +94,15 @@ impl Readout {
     /// # Errors
     /// A ply without a boundary, or a zone without an element, naming the
     /// case file and the zone.
-    pub fn new(case: &FormingCase, built: &FormingModel) -> Result<Self, String> {
+    pub fn new(case: &FormingCase, built: &FormingModel) -> Result<Self, ReadoutError> {
         let mut plies = Vec::new();
         for ply in &built.plies {
             let reference: Vec<[f64; 2]> = ply.mesh.nodes.iter().map(|x| [x.x, x.y]).collect();
             let outer = outer_boundary(&reference, &ply.mesh.triangles).ok_or_else(|| {
-                format!(
-                    "{}: ply \"{}\": the mesh has no boundary, so no outer contour or draw-in",
-                    case.source, ply.name
-                )
+                ReadoutError::NoBoundary {
+                    source_file: case.source.clone(),
+                    ply: ply.name.clone(),
+                }
             })?;
             let points = draw_in_points(&reference, &outer);
             plies.push(PlyBlank {
@@ -79,16 +116,16 @@ impl Readout {
         for (i, z) in case.zones.iter().enumerate() {
             let elements = z.zone.elements(&built.plies[z.ply].membrane);
             if elements.is_empty() {
-                return Err(format!(
-                    "{}: zone[{i}] (\"{}\"): no element of ply \"{}\" has its centroid in the window centred at [{}, {}] mm of size [{}, {}] mm; expected a window on the blank",
-                    case.source,
-                    z.zone.name,
-                    built.plies[z.ply].name,
-                    z.zone.centre[0],
-                    z.zone.centre[1],
-                    z.zone.size[0],
-                    z.zone.size[1]
-                ));
+                return Err(ReadoutError::EmptyZone {
+                    source_file: case.source.clone(),
+                    index: i,
+                    zone: z.zone.name.clone(),
+                    ply: built.plies[z.ply].name.clone(),
+                    x: z.zone.centre[0],
+                    y: z.zone.centre[1],
+                    width: z.zone.size[0],
+                    height: z.zone.size[1],
+                });
             }
             zones.push(elements);
         }
