@@ -47,10 +47,14 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::amplitude::Amplitude;
 use super::assembly::Assembler;
-use super::explicit::Amplitude;
+use super::cancel::CancelToken;
+use super::dofs::DofMap;
 use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
 use crate::model::{Augmentation, Masses, Model, State, TermFailure};
+
+pub use super::status::{RunStatus, Snapshot};
 
 /// Solver knobs, all with documented defaults (`docs/cases.md`).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -117,7 +121,7 @@ pub struct NewtonParameters {
     /// Stop (interrupted, keeping every converged step) before the next
     /// load step once this is cancelled. Not a case-file key.
     #[serde(skip)]
-    pub cancel: super::CancelToken,
+    pub cancel: CancelToken,
 }
 
 /// The viscous stabilisation of the quasi-static path
@@ -181,7 +185,7 @@ impl Default for NewtonParameters {
             inertia_duration: None,
             inertia_amplitude: Amplitude::Linear,
             max_wall_seconds: None,
-            cancel: super::CancelToken::default(),
+            cancel: CancelToken::default(),
         }
     }
 }
@@ -238,29 +242,6 @@ pub struct StabilisationRecord {
 
 fn is_zero(n: &usize) -> bool {
     *n == 0
-}
-
-/// How a run ended.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(tag = "status", rename_all = "lowercase")]
-pub enum RunStatus {
-    /// Reached the final load.
-    Complete,
-    /// Stopped early; results up to `load_reached` are valid.
-    Incomplete {
-        /// Last converged load.
-        load_reached: f64,
-        /// The load of the step that failed.
-        load_attempted: f64,
-        /// Why the last attempt failed.
-        reason: String,
-    },
-    /// Stopped on request (the parameters' cancel token) at a safe point;
-    /// results up to `load_reached` are valid.
-    Interrupted {
-        /// The load of the last converged step or output.
-        load_reached: f64,
-    },
 }
 
 /// Wall-clock time spent in the parts of the solve \[s\].
@@ -803,18 +784,6 @@ impl Newton<'_> {
     }
 }
 
-/// What a step or output callback sees: the converged displacement, the
-/// residual of every dof (the reaction at a constrained one, \[N\]) and the
-/// model (for terms' own outputs: contact forces, say).
-pub struct Snapshot<'a> {
-    /// Displacement of every dof \[mm\].
-    pub u: &'a [f64],
-    /// `f_int − f_ext` of every dof \[N\].
-    pub residual: &'a [f64],
-    /// The model at this state.
-    pub model: &'a Model,
-}
-
 /// Drives `λ` from 0 to `final_load`, landing exactly on every value in
 /// `stops` (sorted, within (0, final_load]); calls `on_step` after every
 /// converged step with the record and the state.
@@ -830,7 +799,7 @@ pub struct Snapshot<'a> {
 /// with [`RunStatus::Interrupted`].
 pub fn solve_quasi_static(
     model: &mut Model,
-    dofs: super::dofs::DofMap,
+    dofs: DofMap,
     params: &NewtonParameters,
     final_load: f64,
     stops: &[f64],
@@ -1189,7 +1158,7 @@ fn internal_energy_of(model: &mut Model, state: &State) -> f64 {
 /// masses (`Term::lumped_masses`), with dofs lighter than
 /// `STABILISATION_MIN_MASS` times the mean non-zero nodal mass raised to
 /// that mean (a model without masses gets unit masses).
-fn stabilisation_masses(model: &Model, dofs: &super::dofs::DofMap) -> Vec<f64> {
+fn stabilisation_masses(model: &Model, dofs: &DofMap) -> Vec<f64> {
     let mut masses = Masses {
         node: vec![0.0; model.nodes],
         extra: vec![0.0; model.extras.len()],

@@ -25,6 +25,7 @@
 
 mod chains;
 mod params;
+mod setup_error;
 pub mod step;
 pub mod system;
 
@@ -32,13 +33,13 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-pub use params::{
-    Amplitude, DEFAULT_MAX_INCREMENTS, ExplicitParameters, SettingError, TimeStepControl,
-};
-pub use system::{MassSummary, NODE_BLOCK, SetupError};
+pub use super::amplitude::Amplitude;
+pub use params::{DEFAULT_MAX_INCREMENTS, ExplicitParameters, SettingError, TimeStepControl};
+pub use setup_error::SetupError;
+pub use system::{MassSummary, NODE_BLOCK};
 
 use super::dofs::DofMap;
-use super::newton::{RunStatus, Snapshot};
+use super::status::{RunStatus, Snapshot};
 use crate::model::{Model, State, TermEnergy, TermFailure};
 pub use system::{ExplicitSystem, Update};
 
