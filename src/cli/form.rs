@@ -1135,7 +1135,8 @@ fn run_quasi_static(
             sink.history.push(row);
             sink.seconds += clock.elapsed().as_secs_f64();
         },
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     result
         .warnings
         .iter()

@@ -647,7 +647,8 @@ fn run_quasi_static(
                 row.iterations = Some(record.iterations);
             });
         },
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     Ok(SolveReport {
         status: result.status,
         unknowns: result.unknowns,

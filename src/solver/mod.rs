@@ -22,7 +22,7 @@ pub use explicit::{
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
-    NewtonParameters, QuasiStaticResult, SolverTimings, Stabilisation, StabilisationRecord,
-    StepRecord, solve_quasi_static,
+    NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings, Stabilisation,
+    StabilisationRecord, StepRecord, solve_quasi_static,
 };
 pub use status::{RunStatus, Snapshot};
