@@ -29,9 +29,10 @@ use super::term::{
     rounded_up,
 };
 use crate::contact::kernel::{
-    AugmentationNorms, AugmentedLagrangian, ContactStatus, ImplicitContactState, ImplicitResponse,
-    PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState, Smoothing,
-    couple_tool_translation, max_curvature, penalty_lanes_one_by_one, stable_penalty_stiffness,
+    AugmentationNorms, AugmentedLagrangian, ContactError, ContactStatus, ImplicitContactState,
+    ImplicitResponse, PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState,
+    Smoothing, couple_tool_translation, max_curvature, penalty_lanes_one_by_one,
+    stable_penalty_stiffness,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
 
@@ -174,23 +175,42 @@ impl ExplicitPenalty {
     /// # Errors
     /// A fraction outside (0, 1], a per-area stiffness or an area that is
     /// not positive, or a stiffness that is not finite.
-    pub fn stiffness(&self, mass: f64, area: f64, time_step: f64) -> Result<f64, String> {
+    pub fn stiffness(&self, mass: f64, area: f64, time_step: f64) -> Result<f64, PenaltyError> {
         match *self {
-            Self::StableFraction(c) => {
-                stable_penalty_stiffness(mass, time_step, c).map_err(|e| e.to_string())
-            }
+            Self::StableFraction(c) => Ok(stable_penalty_stiffness(mass, time_step, c)?),
             Self::PerArea(k_p) => {
                 let k = k_p * area;
                 if k_p > 0.0 && area > 0.0 && k.is_finite() {
                     Ok(k)
                 } else {
-                    Err(format!(
-                        "penalty {k_p} N/mm³ on a nodal area {area} mm²: expected both positive"
-                    ))
+                    Err(PenaltyError::PerArea {
+                        pressure_stiffness: k_p,
+                        area,
+                    })
                 }
             }
         }
     }
+}
+
+/// Why [`ExplicitPenalty::stiffness`] gives no stiffness.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum PenaltyError {
+    /// A fraction of the stable limit that is out of range, or a mass or
+    /// step for which the stiffness is not finite.
+    #[error(transparent)]
+    StableFraction(#[from] ContactError),
+    /// A per-area stiffness or a nodal area that is not positive, or a
+    /// product that is not finite.
+    #[error(
+        "penalty {pressure_stiffness} N/mm³ on a nodal area {area} mm²: expected both positive"
+    )]
+    PerArea {
+        /// The stiffness per unit area \[N/mm³\].
+        pressure_stiffness: f64,
+        /// The node's tributary area \[mm²\].
+        area: f64,
+    },
 }
 
 /// The contact of a set of ply nodes with one rigid tool.
@@ -396,6 +416,7 @@ impl ToolContact {
     fn respond(&mut self, u: &[f64]) -> Result<(), TermFailure> {
         let first_failure = AtomicUsize::new(usize::MAX);
         let this = &*self;
+        // A String error: it is the reason of the `TermFailure` built below.
         let responses: Vec<Result<ImplicitResponse, String>> = (0..self.nodes.len())
             .into_par_iter()
             .with_min_len(NODE_CHUNK)
@@ -605,7 +626,7 @@ impl Term for ToolContact {
                 .options
                 .explicit_stiffness
                 .stiffness(m, self.areas[i], time_step)
-                .map_err(|e| self.failure(i, e))?;
+                .map_err(|e| self.failure(i, e.to_string()))?;
             let spring =
                 PenaltyContact::new(stiffness, stiffness, self.options.friction, self.offsets[i])
                     .map_err(|e| self.failure(i, e.to_string()))?;
@@ -1015,5 +1036,27 @@ impl pulp::WithSimd for Avx2Kernel<'_> {
         self.chunk.batches(|batch, input, output, time_step| {
             crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The messages read as they did when they were Strings.
+    #[test]
+    fn penalty_errors_keep_their_wording() {
+        let error = ExplicitPenalty::PerArea(-2.0)
+            .stiffness(1.0, 0.25, 1e-6)
+            .unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "penalty -2 N/mm³ on a nodal area 0.25 mm²: expected both positive"
+        );
+        let error = ExplicitPenalty::StableFraction(1.5)
+            .stiffness(1.0, 0.25, 1e-6)
+            .unwrap_err();
+        let kernel = stable_penalty_stiffness(1.0, 1e-6, 1.5).unwrap_err();
+        assert_eq!(error.to_string(), kernel.to_string());
     }
 }

@@ -14,10 +14,10 @@ pub mod ply_contact;
 pub mod term;
 
 pub use bending::{BendingSetupError, BendingTerm};
-pub use contact::{ContactOptions, ExplicitPenalty, NodeContact, ToolContact};
+pub use contact::{ContactOptions, ExplicitPenalty, NodeContact, PenaltyError, ToolContact};
 pub use loads::{DeadLoad, LoadAmplitude, RigidBodyMass};
 pub use membrane::{MembraneModel, MembraneOptions, MembraneTerm};
-pub use ply_contact::{PlyContact, PlyContactOptions, PlyNodeContact, PlySurface};
+pub use ply_contact::{PlyContact, PlyContactError, PlyContactOptions, PlyNodeContact, PlySurface};
 pub use term::{
     Augmentation, FrequencyBound, MassCoupling, MassScaling, Masses, NO_SLOT, State, Stencils,
     Term, TermEnergy, TermFailure, rounded_up,

@@ -151,6 +151,64 @@ pub struct PlyContact {
     travelled: f64,
 }
 
+/// Why [`PlyContact::new`] refuses its plies or settings. Every message
+/// starts with the term's name.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlyContactError {
+    /// A ply without nodes or triangles.
+    #[error("{term}: ply \"{ply}\" has no triangles")]
+    NoTriangles {
+        /// The term's name.
+        term: String,
+        /// The ply's name.
+        ply: String,
+    },
+    /// A ply whose reference positions do not match its nodes.
+    #[error("{term}: ply \"{ply}\": {positions} reference positions for {nodes} nodes")]
+    ReferenceCount {
+        /// The term's name.
+        term: String,
+        /// The ply's name.
+        ply: String,
+        /// Reference positions given.
+        positions: usize,
+        /// Nodes of the ply.
+        nodes: usize,
+    },
+    /// A triangle with a node out of range.
+    #[error("{term}: ply \"{ply}\": triangle {triangle:?} names a node beyond its {nodes} nodes")]
+    NodeBeyond {
+        /// The term's name.
+        term: String,
+        /// The ply's name.
+        ply: String,
+        /// The triangle (local node numbers).
+        triangle: [usize; 3],
+        /// Nodes of the ply.
+        nodes: usize,
+    },
+    /// A thickness that is not positive.
+    #[error("{term}: ply \"{ply}\": thickness {thickness} mm: expected a positive value")]
+    Thickness {
+        /// The term's name.
+        term: String,
+        /// The ply's name.
+        ply: String,
+        /// The thickness given \[mm\].
+        thickness: f64,
+    },
+    /// A setting out of range.
+    #[error("{term}: {key} = {value}: out of range")]
+    Setting {
+        /// The term's name.
+        term: String,
+        /// The setting (its case-file key).
+        key: &'static str,
+        /// The value given.
+        value: f64,
+    },
+}
+
 impl PlyContact {
     /// Contact between the plies `lower` and `upper` (any order; the names
     /// only label messages).
@@ -163,36 +221,41 @@ impl PlyContact {
         first: PlySurface,
         second: PlySurface,
         options: PlyContactOptions,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PlyContactError> {
         let name = name.into();
         for ply in [&first, &second] {
             if ply.nodes.is_empty() || ply.triangles.is_empty() {
-                return Err(format!("{name}: ply \"{}\" has no triangles", ply.name));
+                return Err(PlyContactError::NoTriangles {
+                    term: name.clone(),
+                    ply: ply.name.clone(),
+                });
             }
             if ply.reference.len() != ply.nodes.len() {
-                return Err(format!(
-                    "{name}: ply \"{}\": {} reference positions for {} nodes",
-                    ply.name,
-                    ply.reference.len(),
-                    ply.nodes.len()
-                ));
+                return Err(PlyContactError::ReferenceCount {
+                    term: name.clone(),
+                    ply: ply.name.clone(),
+                    positions: ply.reference.len(),
+                    nodes: ply.nodes.len(),
+                });
             }
             if let Some(t) = ply
                 .triangles
                 .iter()
                 .find(|t| t.iter().any(|&n| n >= ply.nodes.len()))
             {
-                return Err(format!(
-                    "{name}: ply \"{}\": triangle {t:?} names a node beyond its {} nodes",
-                    ply.name,
-                    ply.nodes.len()
-                ));
+                return Err(PlyContactError::NodeBeyond {
+                    term: name.clone(),
+                    ply: ply.name.clone(),
+                    triangle: *t,
+                    nodes: ply.nodes.len(),
+                });
             }
             if !(ply.thickness.is_finite() && ply.thickness > 0.0) {
-                return Err(format!(
-                    "{name}: ply \"{}\": thickness {} mm: expected a positive value",
-                    ply.name, ply.thickness
-                ));
+                return Err(PlyContactError::Thickness {
+                    term: name.clone(),
+                    ply: ply.name.clone(),
+                    thickness: ply.thickness,
+                });
             }
         }
         let checks = [
@@ -212,7 +275,11 @@ impl PlyContact {
         ];
         for (key, value, ok) in checks {
             if !(ok && value.is_finite()) {
-                return Err(format!("{name}: {key} = {value}: out of range"));
+                return Err(PlyContactError::Setting {
+                    term: name,
+                    key,
+                    value,
+                });
             }
         }
         let offset = 0.5 * (first.thickness + second.thickness);
@@ -421,7 +488,7 @@ impl Term for PlyContact {
                         .options
                         .explicit_stiffness
                         .stiffness(effective, self.areas[k][i], time_step)
-                        .map_err(|e| self.failure(n, e))?;
+                        .map_err(|e| self.failure(n, e.to_string()))?;
                 let spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
                     .map_err(|e| self.failure(n, e.to_string()))?;
                 dashpots.push(self.options.explicit_damping * 2.0 * (k_n * effective).sqrt());
@@ -726,4 +793,61 @@ fn failure(term: &str, node: usize, reason: String) -> TermFailure {
 /// The triangle and weights of a node's last hit, if any.
 fn hit_weights(hit: &Hit) -> Option<(usize, [f64; 3])> {
     (hit.triangle != u32::MAX).then_some((hit.triangle as usize, hit.weights))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The messages read as they did when they were Strings.
+    #[test]
+    fn setup_errors_keep_their_wording() {
+        let (term, ply) = (String::from("c"), String::from("lower"));
+        let cases = [
+            (
+                PlyContactError::NoTriangles {
+                    term: term.clone(),
+                    ply: ply.clone(),
+                },
+                "c: ply \"lower\" has no triangles",
+            ),
+            (
+                PlyContactError::ReferenceCount {
+                    term: term.clone(),
+                    ply: ply.clone(),
+                    positions: 2,
+                    nodes: 3,
+                },
+                "c: ply \"lower\": 2 reference positions for 3 nodes",
+            ),
+            (
+                PlyContactError::NodeBeyond {
+                    term: term.clone(),
+                    ply: ply.clone(),
+                    triangle: [0, 1, 7],
+                    nodes: 3,
+                },
+                "c: ply \"lower\": triangle [0, 1, 7] names a node beyond its 3 nodes",
+            ),
+            (
+                PlyContactError::Thickness {
+                    term: term.clone(),
+                    ply,
+                    thickness: -0.5,
+                },
+                "c: ply \"lower\": thickness -0.5 mm: expected a positive value",
+            ),
+            (
+                PlyContactError::Setting {
+                    term,
+                    key: "skin",
+                    value: 0.0,
+                },
+                "c: skin = 0: out of range",
+            ),
+        ];
+        for (error, text) in cases {
+            assert_eq!(error.to_string(), text);
+        }
+    }
 }

@@ -176,7 +176,7 @@ pub enum RunError {
     },
     /// The quasi-static solver could not be set up.
     #[error("{0}")]
-    QuasiStatic(String),
+    QuasiStatic(#[from] crate::solver::newton::QuasiStaticSetupError),
     /// The explicit solver could not start, with the case file.
     #[error("{source_file}: {error}")]
     Explicit {

@@ -4,21 +4,25 @@
 //! energies), Dirichlet conditions scaled by a load parameter `λ`, and
 //! parameters.
 
+pub mod amplitude;
 pub mod assembly;
 pub mod cancel;
 pub mod dofs;
 pub mod explicit;
 pub mod linear;
 pub mod newton;
+pub mod status;
 
+pub use amplitude::Amplitude;
 pub use assembly::Assembler;
 pub use cancel::CancelToken;
 pub use dofs::{Dirichlet, DofMap};
 pub use explicit::{
-    Amplitude, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
+    ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
-    NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings, Stabilisation,
+    NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings, Stabilisation,
     StabilisationRecord, StepRecord, solve_quasi_static,
 };
+pub use status::{RunStatus, Snapshot};

@@ -43,14 +43,19 @@
 //! `NCFORM_NEWTON_TRACE` in the environment prints every
 //! iteration, augmentation, failed attempt and accepted step to stderr.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::amplitude::Amplitude;
 use super::assembly::Assembler;
-use super::explicit::Amplitude;
+use super::cancel::CancelToken;
+use super::dofs::DofMap;
 use super::linear::{LinearSolverError, LinearSolverKind, SparseSolver};
 use crate::model::{Augmentation, Masses, Model, State, TermFailure};
+
+pub use super::status::{RunStatus, Snapshot};
 
 /// Solver knobs, all with documented defaults (`docs/cases.md`).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -117,7 +122,7 @@ pub struct NewtonParameters {
     /// Stop (interrupted, keeping every converged step) before the next
     /// load step once this is cancelled. Not a case-file key.
     #[serde(skip)]
-    pub cancel: super::CancelToken,
+    pub cancel: CancelToken,
 }
 
 /// The viscous stabilisation of the quasi-static path
@@ -181,7 +186,7 @@ impl Default for NewtonParameters {
             inertia_duration: None,
             inertia_amplitude: Amplitude::Linear,
             max_wall_seconds: None,
-            cancel: super::CancelToken::default(),
+            cancel: CancelToken::default(),
         }
     }
 }
@@ -240,29 +245,6 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
-/// How a run ended.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(tag = "status", rename_all = "lowercase")]
-pub enum RunStatus {
-    /// Reached the final load.
-    Complete,
-    /// Stopped early; results up to `load_reached` are valid.
-    Incomplete {
-        /// Last converged load.
-        load_reached: f64,
-        /// The load of the step that failed.
-        load_attempted: f64,
-        /// Why the last attempt failed.
-        reason: String,
-    },
-    /// Stopped on request (the parameters' cancel token) at a safe point;
-    /// results up to `load_reached` are valid.
-    Interrupted {
-        /// The load of the last converged step or output.
-        load_reached: f64,
-    },
-}
-
 /// Wall-clock time spent in the parts of the solve \[s\].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct SolverTimings {
@@ -311,6 +293,29 @@ pub struct QuasiStaticResult {
     pub max_stabilisation_ratio: f64,
     /// Warnings (the stabilisation's dissipation above its limit).
     pub warnings: Vec<String>,
+}
+
+/// Why a quasi-static run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum QuasiStaticSetupError {
+    /// The dof map or the state does not match the model.
+    #[error("the dof map has {map} dofs and the state {state}, the model {model}")]
+    DofCount {
+        /// Dofs of the map.
+        map: usize,
+        /// Dofs of the state.
+        state: usize,
+        /// Dofs of the model.
+        model: usize,
+    },
+    /// LDLᵀ asked for an unsymmetric tangent.
+    #[error(
+        "solver.linear_solver = \"ldlt\": expected a symmetric tangent, but friction makes this model's tangent unsymmetric; use \"lu\" or leave linear_solver unset"
+    )]
+    UnsymmetricLdlt,
+    /// The symbolic factorisation failed.
+    #[error(transparent)]
+    Linear(#[from] LinearSolverError),
 }
 
 /// Why one attempt at a load step failed.
@@ -803,18 +808,6 @@ impl Newton<'_> {
     }
 }
 
-/// What a step or output callback sees: the converged displacement, the
-/// residual of every dof (the reaction at a constrained one, \[N\]) and the
-/// model (for terms' own outputs: contact forces, say).
-pub struct Snapshot<'a> {
-    /// Displacement of every dof \[mm\].
-    pub u: &'a [f64],
-    /// `f_int − f_ext` of every dof \[N\].
-    pub residual: &'a [f64],
-    /// The model at this state.
-    pub model: &'a Model,
-}
-
 /// Drives `λ` from 0 to `final_load`, landing exactly on every value in
 /// `stops` (sorted, within (0, final_load]); calls `on_step` after every
 /// converged step with the record and the state.
@@ -823,82 +816,47 @@ pub struct Snapshot<'a> {
 /// `model`).
 ///
 /// # Errors
-/// Only set-up failures (the symbolic factorisation, a symmetric solver
-/// asked for an unsymmetric tangent); a failed solve is a result with
+/// Only set-up failures ([`QuasiStaticSetupError`]: a dof map or state
+/// that does not fit the model, the symbolic factorisation, a symmetric
+/// solver asked for an unsymmetric tangent); a failed solve is a result with
 /// [`RunStatus::Incomplete`], one stopped by `params.cancel` (before a load
 /// step or a Newton iteration; the step in progress is dropped) a result
 /// with [`RunStatus::Interrupted`].
 pub fn solve_quasi_static(
     model: &mut Model,
-    dofs: super::dofs::DofMap,
+    dofs: DofMap,
     params: &NewtonParameters,
     final_load: f64,
     stops: &[f64],
     u: &mut [f64],
     mut on_step: impl FnMut(&StepRecord, &Snapshot),
-) -> Result<QuasiStaticResult, String> {
-    let start = Instant::now();
-    if dofs.total != model.dofs() || u.len() != model.dofs() {
-        return Err(format!(
-            "the dof map has {} dofs and the state {}, the model {}",
-            dofs.total,
-            u.len(),
-            model.dofs()
-        ));
-    }
-    let symmetric = model.symmetric();
-    let linear_solver = match params.linear_solver {
-        None if symmetric => LinearSolverKind::Ldlt,
-        None => LinearSolverKind::Lu,
-        Some(LinearSolverKind::Ldlt) if !symmetric => {
-            return Err("solver.linear_solver = \"ldlt\": expected a symmetric tangent, but friction makes this model's tangent unsymmetric; use \"lu\" or leave linear_solver unset".into());
+) -> Result<QuasiStaticResult, QuasiStaticSetupError> {
+    let mut run = QuasiStaticRun::set_up(model, dofs, params, final_load, stops, u)?;
+    let status = loop {
+        if let ControlFlow::Break(status) = run.step(&mut on_step) {
+            break status;
         }
-        Some(kind) => kind,
     };
-    let assembler = Assembler::new(model, dofs);
-    let solver =
-        SparseSolver::new(linear_solver, assembler.symbolic.clone()).map_err(|e| e.to_string())?;
-    let symbolic_time = start.elapsed().as_secs_f64();
-    let n_total = assembler.dofs.total;
-    let n_free = assembler.dofs.n_free();
-    // Diagonal slots of the free-dof matrix, for the shifted tangent.
-    let symbolic = &assembler.symbolic;
-    let diag_slots: Vec<usize> = (0..n_free)
-        .map(|j| {
-            let col = &symbolic.row_idx()[symbolic.col_ptr()[j]..symbolic.col_ptr()[j + 1]];
-            symbolic.col_ptr()[j] + col.binary_search(&j).unwrap_or(0)
-        })
-        .collect();
-    let nonzeros = assembler.nnz();
-    let masses = stabilisation_masses(model, &assembler.dofs);
-    let previous: Vec<f64> = assembler.dofs.free.iter().map(|&d| u[d]).collect();
-    let mut newton = Newton {
-        model,
-        load: 0.0,
-        load_fraction: 0.0,
-        assembler,
-        solver,
-        params,
-        work: Work {
-            internal: vec![0.0; n_total],
-            trial_internal: vec![0.0; n_total],
-            trial: vec![0.0; n_total],
-            diag: vec![0.0; n_free],
-            diag_slots,
-            velocity: vec![0.0; n_free],
-            anchor: previous.clone(),
-            masses,
-            previous,
-        },
-        timings: SolverTimings {
-            symbolic: symbolic_time,
-            ..Default::default()
-        },
-        iterations: 0,
-        factorisations: 0,
-        mass_coefficient: 0.0,
-    };
+    Ok(run.wind_down(status))
+}
 
+/// The factorisation asked for, or by default LDLᵀ for a symmetric
+/// tangent and LU otherwise; LDLᵀ asked for an unsymmetric one is refused.
+fn choose_linear_solver(
+    asked: Option<LinearSolverKind>,
+    symmetric: bool,
+) -> Result<LinearSolverKind, QuasiStaticSetupError> {
+    match asked {
+        None if symmetric => Ok(LinearSolverKind::Ldlt),
+        None => Ok(LinearSolverKind::Lu),
+        Some(LinearSolverKind::Ldlt) if !symmetric => Err(QuasiStaticSetupError::UnsymmetricLdlt),
+        Some(kind) => Ok(kind),
+    }
+}
+
+/// The load stops: those of `stops` in `(0, final_load)`, then
+/// `final_load`, sorted, without repeats.
+fn load_stops(stops: &[f64], final_load: f64) -> Vec<f64> {
     let mut stops: Vec<f64> = stops
         .iter()
         .copied()
@@ -907,72 +865,244 @@ pub fn solve_quasi_static(
     stops.push(final_load);
     stops.sort_by(f64::total_cmp);
     stops.dedup();
+    stops
+}
 
-    let fraction = |load: f64| {
-        if final_load != 0.0 {
-            (load / final_load).clamp(0.0, 1.0)
+impl<'a> Newton<'a> {
+    /// The Newton solver of `model` at `λ = 0`: the assembler and the
+    /// symbolic factorisation (timed from `start`), the scratch, and the
+    /// masses and last accepted free dofs (`u`) of the mass term.
+    fn new(
+        model: &'a mut Model,
+        dofs: DofMap,
+        params: &'a NewtonParameters,
+        linear_solver: LinearSolverKind,
+        u: &[f64],
+        start: Instant,
+    ) -> Result<Self, LinearSolverError> {
+        let assembler = Assembler::new(model, dofs);
+        let solver = SparseSolver::new(linear_solver, assembler.symbolic.clone())?;
+        let symbolic_time = start.elapsed().as_secs_f64();
+        let n_total = assembler.dofs.total;
+        let n_free = assembler.dofs.n_free();
+        // Diagonal slots of the free-dof matrix, for the shifted tangent.
+        let symbolic = &assembler.symbolic;
+        let diag_slots: Vec<usize> = (0..n_free)
+            .map(|j| {
+                let col = &symbolic.row_idx()[symbolic.col_ptr()[j]..symbolic.col_ptr()[j + 1]];
+                symbolic.col_ptr()[j] + col.binary_search(&j).unwrap_or(0)
+            })
+            .collect();
+        let masses = stabilisation_masses(model, &assembler.dofs);
+        let previous: Vec<f64> = assembler.dofs.free.iter().map(|&d| u[d]).collect();
+        Ok(Newton {
+            model,
+            load: 0.0,
+            load_fraction: 0.0,
+            assembler,
+            solver,
+            params,
+            work: Work {
+                internal: vec![0.0; n_total],
+                trial_internal: vec![0.0; n_total],
+                trial: vec![0.0; n_total],
+                diag: vec![0.0; n_free],
+                diag_slots,
+                velocity: vec![0.0; n_free],
+                anchor: previous.clone(),
+                masses,
+                previous,
+            },
+            timings: SolverTimings {
+                symbolic: symbolic_time,
+                ..Default::default()
+            },
+            iterations: 0,
+            factorisations: 0,
+            mass_coefficient: 0.0,
+        })
+    }
+}
+
+/// A load step being solved: its target and increment, and its mass
+/// term (the damping factor `c`, `c/Δλ`, and the step's time `h`, 0
+/// without inertia).
+struct StepPlan {
+    target: f64,
+    step_increment: f64,
+    factor: f64,
+    viscous: f64,
+    step_time: f64,
+}
+
+/// The working state of a quasi-static run: the Newton solver, and the
+/// load loop's running values that [`QuasiStaticRun::step`] advances.
+struct QuasiStaticRun<'a> {
+    newton: Newton<'a>,
+    params: &'a NewtonParameters,
+    final_load: f64,
+    /// The caller's displacement: the last accepted state.
+    u: &'a mut [f64],
+    /// The state of the step being solved.
+    trial_u: Vec<f64>,
+    /// Load stops in `(0, final_load]`, sorted, `final_load` last.
+    stops: Vec<f64>,
+    /// Loads closer than this are the same.
+    tiny: f64,
+    /// A mass term (viscous, inertial or both) is on: its energies are
+    /// recorded and its dissipation checked against the limit.
+    regularised: bool,
+    start: Instant,
+    linear_solver: LinearSolverKind,
+    nonzeros: usize,
+    load: f64,
+    /// The next step's increment.
+    increment: f64,
+    /// `Δλ` of the last accepted step (`None` before the first); its
+    /// `Δu` of every dof is `delta`.
+    last_increment: Option<f64>,
+    delta: Vec<f64>,
+    steps: Vec<StepRecord>,
+    /// Failed attempts since the last accepted step.
+    cutbacks: usize,
+    total_augmentations: usize,
+    /// The factor on the automatic damping, raised after a failed
+    /// attempt.
+    boost: f64,
+    internal_energy: f64,
+    dissipated_total: f64,
+    max_ratio: f64,
+}
+
+impl<'a> QuasiStaticRun<'a> {
+    /// Set-up stage: checks the sizes, chooses the factorisation, builds
+    /// the Newton solver (assembler, symbolic factorisation, masses) and
+    /// the load stops, and takes the strain energy at the start.
+    fn set_up(
+        model: &'a mut Model,
+        dofs: DofMap,
+        params: &'a NewtonParameters,
+        final_load: f64,
+        stops: &[f64],
+        u: &'a mut [f64],
+    ) -> Result<Self, QuasiStaticSetupError> {
+        let start = Instant::now();
+        if dofs.total != model.dofs() || u.len() != model.dofs() {
+            return Err(QuasiStaticSetupError::DofCount {
+                map: dofs.total,
+                state: u.len(),
+                model: model.dofs(),
+            });
+        }
+        let linear_solver = choose_linear_solver(params.linear_solver, model.symmetric())?;
+        let n_total = dofs.total;
+        let newton = Newton::new(model, dofs, params, linear_solver, u, start)?;
+        let nonzeros = newton.assembler.nnz();
+        let trial_u = u.to_vec();
+        let start_state = newton.state(u);
+        let internal_energy = internal_energy_of(newton.model, &start_state);
+        Ok(Self {
+            newton,
+            params,
+            final_load,
+            u,
+            trial_u,
+            stops: load_stops(stops, final_load),
+            tiny: 1e-12 * final_load.abs().max(1.0),
+            regularised: params.stabilisation != Stabilisation::Off
+                || params.inertia_duration.is_some(),
+            start,
+            linear_solver,
+            nonzeros,
+            load: 0.0,
+            increment: params.initial_increment.min(final_load),
+            last_increment: None,
+            delta: vec![0.0; n_total],
+            steps: Vec::new(),
+            cutbacks: 0,
+            total_augmentations: 0,
+            boost: 1.0,
+            internal_energy,
+            dissipated_total: 0.0,
+            max_ratio: 0.0,
+        })
+    }
+
+    /// `λ / λ_final` in `[0, 1]` (1 for a zero final load).
+    fn fraction(&self, load: f64) -> f64 {
+        if self.final_load != 0.0 {
+            (load / self.final_load).clamp(0.0, 1.0)
         } else {
             1.0
         }
-    };
-    let mut load = 0.0;
-    let mut increment = params.initial_increment.min(final_load);
-    let mut last_increment: Option<(f64, Vec<f64>)> = None;
-    let mut steps = Vec::new();
-    let mut cutbacks = 0;
-    let mut total_augmentations = 0;
-    let mut trial_u = u.to_vec();
-    let tiny = 1e-12 * final_load.abs().max(1.0);
-    // Stabilisation: the factor on the automatic damping (raised after a
-    // failed attempt), the energies so far.
-    let mut boost = 1.0_f64;
-    let start_state = newton.state(u);
-    let mut internal_energy = internal_energy_of(newton.model, &start_state);
-    let mut dissipated_total = 0.0;
-    let mut max_ratio = 0.0_f64;
-    // A mass term (viscous, inertial or both) is on: its energies are
-    // recorded and its dissipation checked against the limit.
-    let regularised =
-        params.stabilisation != Stabilisation::Off || params.inertia_duration.is_some();
-    let status = loop {
-        if load >= final_load - tiny {
-            break RunStatus::Complete;
+    }
+
+    /// Step stage, one load step: the target (the increment, shortened to
+    /// land on the next stop), the mass term, the Newton solves, then the
+    /// accepted state and its output, or a cut-back. Breaks with the run's
+    /// status.
+    fn step(&mut self, on_step: &mut impl FnMut(&StepRecord, &Snapshot)) -> ControlFlow<RunStatus> {
+        if self.load >= self.final_load - self.tiny {
+            return ControlFlow::Break(RunStatus::Complete);
         }
-        let next_stop = stops
+        let next_stop = self
+            .stops
             .iter()
             .copied()
-            .find(|s| *s > load + tiny)
-            .unwrap_or(final_load);
-        let target = (load + increment).min(next_stop);
-        let step_increment = target - load;
-        if params.cancel.is_cancelled() {
-            break RunStatus::Interrupted { load_reached: load };
+            .find(|s| *s > self.load + self.tiny)
+            .unwrap_or(self.final_load);
+        let target = (self.load + self.increment).min(next_stop);
+        let step_increment = target - self.load;
+        if self.params.cancel.is_cancelled() {
+            return ControlFlow::Break(RunStatus::Interrupted {
+                load_reached: self.load,
+            });
         }
-        if let Some(budget) = params.max_wall_seconds
-            && start.elapsed().as_secs_f64() > budget
+        if let Some(budget) = self.params.max_wall_seconds
+            && self.start.elapsed().as_secs_f64() > budget
         {
-            break RunStatus::Incomplete {
-                load_reached: load,
+            return ControlFlow::Break(RunStatus::Incomplete {
+                load_reached: self.load,
                 load_attempted: target,
                 reason: format!(
                     "the wall-time budget of {budget} s (solver.max_wall_seconds) ran out"
                 ),
-            };
+            });
         }
-        newton.load = target;
-        newton.load_fraction = fraction(target);
+        let plan = self.plan(target, step_increment);
+        match self.solve_step(&plan) {
+            Ok(solved) => {
+                let (iterations, augmentations) = (solved.iterations, solved.augmentations);
+                let (reaction, stabilisation) = self.accept(&plan, augmentations);
+                self.output(&plan, reaction, stabilisation, solved, on_step);
+                self.next_increment(&plan, iterations, augmentations);
+                ControlFlow::Continue(())
+            }
+            Err(err) => self.cut_back(&plan, err),
+        }
+    }
+
+    /// The step's load and its mass term (`docs/solver.md`,
+    /// "Stabilisation", "Inertia"): the damping factor, the step's time,
+    /// the coefficient `a` and the anchor of `a M (u − anchor)`.
+    fn plan(&mut self, target: f64, step_increment: f64) -> StepPlan {
+        let params = self.params;
+        self.newton.load = target;
+        self.newton.load_fraction = self.fraction(target);
         // The damping factor of this step (`docs/solver.md`, "Stabilisation").
         let factor = match params.stabilisation {
             Stabilisation::Off => 0.0,
             Stabilisation::Constant => params.stabilisation_factor,
-            Stabilisation::Automatic => match &last_increment {
-                Some((previous, delta)) => {
+            Stabilisation::Automatic => match self.last_increment {
+                Some(previous) => {
                     // ‖v‖²_M with v the last step's Δu/Δλ.
-                    let v2 =
-                        mass_norm_squared(&newton.assembler.dofs.free, &newton.work.masses, delta)
-                            / (previous * previous);
-                    if v2 > 0.0 && internal_energy > 0.0 {
-                        boost * params.stabilisation_fraction * internal_energy / v2
+                    let v2 = mass_norm_squared(
+                        &self.newton.assembler.dofs.free,
+                        &self.newton.work.masses,
+                        &self.delta,
+                    ) / (previous * previous);
+                    if v2 > 0.0 && self.internal_energy > 0.0 {
+                        self.boost * params.stabilisation_fraction * self.internal_energy / v2
                     } else {
                         0.0
                     }
@@ -991,10 +1121,10 @@ pub fn solve_quasi_static(
         // leaves it unstabilised; the dynamics starts from rest there).
         // The one mass term `a M (u − anchor)`, `a = a_v + a_i`, pulls
         // towards `u_n + (a_i/a) h v_n`.
-        let step_time = match (params.inertia_duration, &last_increment) {
+        let step_time = match (params.inertia_duration, self.last_increment) {
             (Some(duration), Some(_)) => {
                 let tau = |f: f64| params.inertia_amplitude.inverse(f);
-                duration * (tau(fraction(target)) - tau(fraction(load)))
+                duration * (tau(self.fraction(target)) - tau(self.fraction(self.load)))
             }
             _ => 0.0,
         };
@@ -1003,175 +1133,239 @@ pub fn solve_quasi_static(
         } else {
             0.0
         };
+        let newton = &mut self.newton;
         newton.mass_coefficient = viscous + inertial;
         let lead = if newton.mass_coefficient > 0.0 {
             inertial / newton.mass_coefficient * step_time
         } else {
             0.0
         };
-        for k in 0..n_free {
+        for k in 0..newton.work.anchor.len() {
             newton.work.anchor[k] = newton.work.previous[k] + lead * newton.work.velocity[k];
         }
-        // Predictor: prescribed values at the target, free dofs extrapolated;
-        // then Newton solves, augmenting between them.
-        let mut attempt = |extrapolate: bool, trial_u: &mut Vec<f64>| {
-            // Every attempt starts from the history of the last accepted step.
-            newton.model.restore();
-            trial_u.copy_from_slice(u);
-            for c in &newton.assembler.dofs.constrained {
-                trial_u[c.dof] = c.per_unit_load * target;
-            }
-            if extrapolate && let Some((previous, delta)) = &last_increment {
-                let ratio = step_increment / previous;
-                for &d in &newton.assembler.dofs.free {
-                    trial_u[d] += ratio * delta[d];
-                }
-            }
-            newton.solve_with_augmentations(trial_u)
-        };
-        let mut result = attempt(params.extrapolate && last_increment.is_some(), &mut trial_u);
-        if params.extrapolate && last_increment.is_some() && result.is_err() {
-            result = attempt(false, &mut trial_u);
+        StepPlan {
+            target,
+            step_increment,
+            factor,
+            viscous,
+            step_time,
         }
-        match result {
-            Ok(solved) => {
-                let delta: Vec<f64> = trial_u.iter().zip(u.iter()).map(|(a, b)| a - b).collect();
-                u.copy_from_slice(&trial_u);
-                let state = newton.state(u);
-                newton.model.commit(&state);
-                let reaction: f64 = newton
-                    .assembler
-                    .dofs
-                    .constrained
-                    .iter()
-                    .map(|c| c.per_unit_load * newton.work.internal[c.dof])
-                    .sum();
-                load = target;
-                total_augmentations += solved.augmentations;
-                // Backward Euler's velocities, its numerical dissipation
-                // and the kinetic energy (inertia only).
-                let (mut inertial_dissipation, mut kinetic) = (0.0, 0.0);
-                let free = &newton.assembler.dofs.free;
-                if step_time > 0.0 {
-                    for (k, &d) in free.iter().enumerate() {
-                        let v = delta[d] / step_time;
-                        let m = newton.work.masses[k];
-                        inertial_dissipation += 0.5 * m * (v - newton.work.velocity[k]).powi(2);
-                        kinetic += 0.5 * m * v * v;
-                        newton.work.velocity[k] = v;
-                    }
-                }
-                for (k, &d) in free.iter().enumerate() {
-                    newton.work.previous[k] = u[d];
-                }
-                let stabilisation = regularised.then(|| {
-                    let dissipated = viscous
-                        * mass_norm_squared(
-                            &newton.assembler.dofs.free,
-                            &newton.work.masses,
-                            &delta,
-                        )
-                        + inertial_dissipation;
-                    dissipated_total += dissipated;
-                    StabilisationRecord {
-                        factor,
-                        dissipated,
-                        dissipated_total,
-                        kinetic,
-                    }
-                });
-                internal_energy = internal_energy_of(newton.model, &state);
-                if stabilisation.is_some()
-                    && fraction(load) >= STABILISATION_RATIO_FROM
-                    && internal_energy > 0.0
-                {
-                    max_ratio = max_ratio.max(dissipated_total / internal_energy);
-                }
-                boost = (boost / 2.0).max(1.0);
-                if trace() {
-                    let kinetic = stabilisation.map_or(0.0, |s| s.kinetic);
-                    eprintln!(
-                        "[step] λ {load:.6} reaction {reaction:.6e} E_int {internal_energy:.6e} D {dissipated_total:.6e} c {factor:.3e} KE {kinetic:.3e}"
-                    );
-                }
-                let record = StepRecord {
-                    step: steps.len() + 1,
-                    load,
-                    reaction,
-                    energy: solved.energy,
-                    iterations: solved.iterations,
-                    residuals: solved.residuals,
-                    cutbacks,
-                    augmentations: solved.augmentations,
-                    contact: solved.contact,
-                    internal_energy,
-                    stabilisation,
-                };
-                on_step(
-                    &record,
-                    &Snapshot {
-                        u,
-                        residual: &newton.work.internal,
-                        model: newton.model,
-                    },
-                );
-                let iterations = record.iterations;
-                steps.push(record);
-                cutbacks = 0;
-                last_increment = Some((step_increment, delta));
-                if iterations <= params.easy_iterations * (1 + solved.augmentations) {
-                    increment = (increment * params.growth).min(params.max_increment);
-                }
-                // A step shortened to land on a stop does not shrink the next.
-                increment = increment.max(step_increment.min(params.max_increment));
-            }
-            Err(err) => {
-                if trace() {
-                    eprintln!("[newton] λ {target:.6} (Δλ {step_increment:.3e}) failed: {err}");
-                }
-                newton.model.restore();
-                if err == AttemptError::Interrupted {
-                    break RunStatus::Interrupted { load_reached: load };
-                }
-                cutbacks += 1;
-                if params.stabilisation == Stabilisation::Automatic {
-                    boost = (boost * STABILISATION_BOOST).min(STABILISATION_MAX_BOOST);
-                }
-                increment = step_increment * params.cutback;
-                if increment < params.min_increment {
-                    break RunStatus::Incomplete {
-                        load_reached: load,
-                        load_attempted: target,
-                        reason: err.to_string(),
-                    };
-                }
-            }
-        }
-    };
-    let mut warnings = Vec::new();
-    if regularised && max_ratio > params.stabilisation_limit {
-        warnings.push(format!(
-            "the stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\", \"Inertia\")",
-            100.0 * max_ratio,
-            100.0 * params.stabilisation_limit
-        ));
     }
-    Ok(QuasiStaticResult {
-        status,
-        steps,
-        newton_iterations: newton.iterations,
-        factorisations: newton.factorisations,
-        timings: newton.timings,
-        unknowns: n_free,
-        nonzeros,
-        linear_solver,
-        augmentations: total_augmentations,
-        term_seconds: newton.assembler.term_seconds.clone(),
-        internal_energy,
-        stabilisation_energy: dissipated_total,
-        max_stabilisation_ratio: max_ratio,
-        warnings,
-    })
+
+    /// The step's Newton solves: from the extrapolated predictor when
+    /// there is one, then, if that fails, from the last accepted state.
+    fn solve_step(&mut self, plan: &StepPlan) -> Result<Solved, AttemptError> {
+        let extrapolate = self.params.extrapolate && self.last_increment.is_some();
+        let mut result = self.attempt(plan, extrapolate);
+        if extrapolate && result.is_err() {
+            result = self.attempt(plan, false);
+        }
+        result
+    }
+
+    /// One attempt at the step into `trial_u`: from the history of the
+    /// last accepted step, the prescribed values at the target and the
+    /// free dofs extrapolated (or not), then Newton solves, augmenting
+    /// between them.
+    fn attempt(&mut self, plan: &StepPlan, extrapolate: bool) -> Result<Solved, AttemptError> {
+        // Every attempt starts from the history of the last accepted step.
+        self.newton.model.restore();
+        self.trial_u.copy_from_slice(self.u);
+        for c in &self.newton.assembler.dofs.constrained {
+            self.trial_u[c.dof] = c.per_unit_load * plan.target;
+        }
+        if extrapolate && let Some(previous) = self.last_increment {
+            let ratio = plan.step_increment / previous;
+            for &d in &self.newton.assembler.dofs.free {
+                self.trial_u[d] += ratio * self.delta[d];
+            }
+        }
+        self.newton.solve_with_augmentations(&mut self.trial_u)
+    }
+
+    /// The converged step becomes the state: the terms commit their
+    /// history; the reaction, backward Euler's velocities and the
+    /// energies of the mass term and of the strain follow. Returns the
+    /// reaction and the stabilisation record (none when no mass term).
+    fn accept(
+        &mut self,
+        plan: &StepPlan,
+        augmentations: usize,
+    ) -> (f64, Option<StabilisationRecord>) {
+        for ((delta, trial), u) in self.delta.iter_mut().zip(&self.trial_u).zip(self.u.iter()) {
+            *delta = trial - u;
+        }
+        self.u.copy_from_slice(&self.trial_u);
+        let newton = &mut self.newton;
+        let state = newton.state(self.u);
+        newton.model.commit(&state);
+        let reaction: f64 = newton
+            .assembler
+            .dofs
+            .constrained
+            .iter()
+            .map(|c| c.per_unit_load * newton.work.internal[c.dof])
+            .sum();
+        self.load = plan.target;
+        self.total_augmentations += augmentations;
+        // Backward Euler's velocities, its numerical dissipation and the
+        // kinetic energy (inertia only).
+        let (mut inertial_dissipation, mut kinetic) = (0.0, 0.0);
+        let free = &newton.assembler.dofs.free;
+        if plan.step_time > 0.0 {
+            for (k, &d) in free.iter().enumerate() {
+                let v = self.delta[d] / plan.step_time;
+                let m = newton.work.masses[k];
+                inertial_dissipation += 0.5 * m * (v - newton.work.velocity[k]).powi(2);
+                kinetic += 0.5 * m * v * v;
+                newton.work.velocity[k] = v;
+            }
+        }
+        for (k, &d) in free.iter().enumerate() {
+            newton.work.previous[k] = self.u[d];
+        }
+        let stabilisation = self.regularised.then(|| {
+            let dissipated = plan.viscous
+                * mass_norm_squared(free, &newton.work.masses, &self.delta)
+                + inertial_dissipation;
+            self.dissipated_total += dissipated;
+            StabilisationRecord {
+                factor: plan.factor,
+                dissipated,
+                dissipated_total: self.dissipated_total,
+                kinetic,
+            }
+        });
+        self.internal_energy = internal_energy_of(newton.model, &state);
+        if stabilisation.is_some()
+            && self.fraction(self.load) >= STABILISATION_RATIO_FROM
+            && self.internal_energy > 0.0
+        {
+            self.max_ratio = self
+                .max_ratio
+                .max(self.dissipated_total / self.internal_energy);
+        }
+        self.boost = (self.boost / 2.0).max(1.0);
+        (reaction, stabilisation)
+    }
+
+    /// Output stage: the step's record, handed to `on_step` with the
+    /// state, then kept.
+    fn output(
+        &mut self,
+        plan: &StepPlan,
+        reaction: f64,
+        stabilisation: Option<StabilisationRecord>,
+        solved: Solved,
+        on_step: &mut impl FnMut(&StepRecord, &Snapshot),
+    ) {
+        let (load, internal_energy) = (self.load, self.internal_energy);
+        if trace() {
+            let kinetic = stabilisation.map_or(0.0, |s| s.kinetic);
+            eprintln!(
+                "[step] λ {load:.6} reaction {reaction:.6e} E_int {internal_energy:.6e} D {:.6e} c {:.3e} KE {kinetic:.3e}",
+                self.dissipated_total, plan.factor
+            );
+        }
+        let record = StepRecord {
+            step: self.steps.len() + 1,
+            load,
+            reaction,
+            energy: solved.energy,
+            iterations: solved.iterations,
+            residuals: solved.residuals,
+            cutbacks: self.cutbacks,
+            augmentations: solved.augmentations,
+            contact: solved.contact,
+            internal_energy,
+            stabilisation,
+        };
+        on_step(
+            &record,
+            &Snapshot {
+                u: self.u,
+                residual: &self.newton.work.internal,
+                model: self.newton.model,
+            },
+        );
+        self.steps.push(record);
+    }
+
+    /// After an accepted step: the next increment, grown after an easy
+    /// step, never shrunk by a step shortened to land on a stop.
+    fn next_increment(&mut self, plan: &StepPlan, iterations: usize, augmentations: usize) {
+        self.cutbacks = 0;
+        self.last_increment = Some(plan.step_increment);
+        let params = self.params;
+        if iterations <= params.easy_iterations * (1 + augmentations) {
+            self.increment = (self.increment * params.growth).min(params.max_increment);
+        }
+        // A step shortened to land on a stop does not shrink the next.
+        self.increment = self
+            .increment
+            .max(plan.step_increment.min(params.max_increment));
+    }
+
+    /// After a failed step: the terms' history restored, the increment
+    /// cut back (and the automatic damping raised); the run stops below
+    /// the smallest increment or on a stop request.
+    fn cut_back(&mut self, plan: &StepPlan, err: AttemptError) -> ControlFlow<RunStatus> {
+        if trace() {
+            eprintln!(
+                "[newton] λ {:.6} (Δλ {:.3e}) failed: {err}",
+                plan.target, plan.step_increment
+            );
+        }
+        self.newton.model.restore();
+        if err == AttemptError::Interrupted {
+            return ControlFlow::Break(RunStatus::Interrupted {
+                load_reached: self.load,
+            });
+        }
+        self.cutbacks += 1;
+        if self.params.stabilisation == Stabilisation::Automatic {
+            self.boost = (self.boost * STABILISATION_BOOST).min(STABILISATION_MAX_BOOST);
+        }
+        self.increment = plan.step_increment * self.params.cutback;
+        if self.increment < self.params.min_increment {
+            return ControlFlow::Break(RunStatus::Incomplete {
+                load_reached: self.load,
+                load_attempted: plan.target,
+                reason: err.to_string(),
+            });
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// Wind-down stage: the warning of a stabilisation that dissipated
+    /// beyond its limit, and the result.
+    fn wind_down(self, status: RunStatus) -> QuasiStaticResult {
+        let mut warnings = Vec::new();
+        if self.regularised && self.max_ratio > self.params.stabilisation_limit {
+            warnings.push(format!(
+                "the stabilisation dissipated up to {:.3} % of the internal energy (limit {} %; docs/solver.md, \"Stabilisation\", \"Inertia\")",
+                100.0 * self.max_ratio,
+                100.0 * self.params.stabilisation_limit
+            ));
+        }
+        let newton = self.newton;
+        QuasiStaticResult {
+            status,
+            steps: self.steps,
+            newton_iterations: newton.iterations,
+            factorisations: newton.factorisations,
+            timings: newton.timings,
+            unknowns: newton.assembler.dofs.n_free(),
+            nonzeros: self.nonzeros,
+            linear_solver: self.linear_solver,
+            augmentations: self.total_augmentations,
+            term_seconds: newton.assembler.term_seconds.clone(),
+            internal_energy: self.internal_energy,
+            stabilisation_energy: self.dissipated_total,
+            max_stabilisation_ratio: self.max_ratio,
+            warnings,
+        }
+    }
 }
 
 /// The strain energy of the model: the sum of its terms' internal
@@ -1189,7 +1383,7 @@ fn internal_energy_of(model: &mut Model, state: &State) -> f64 {
 /// masses (`Term::lumped_masses`), with dofs lighter than
 /// `STABILISATION_MIN_MASS` times the mean non-zero nodal mass raised to
 /// that mean (a model without masses gets unit masses).
-fn stabilisation_masses(model: &Model, dofs: &super::dofs::DofMap) -> Vec<f64> {
+fn stabilisation_masses(model: &Model, dofs: &DofMap) -> Vec<f64> {
     let mut masses = Masses {
         node: vec![0.0; model.nodes],
         extra: vec![0.0; model.extras.len()],
@@ -1226,4 +1420,32 @@ fn mass_norm_squared(free: &[usize], masses: &[f64], delta: &[f64]) -> f64 {
         .zip(masses)
         .map(|(&d, m)| m * delta[d] * delta[d])
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The set-up messages read as they did when they were Strings.
+    #[test]
+    fn setup_errors_keep_their_wording() {
+        let error = QuasiStaticSetupError::DofCount {
+            map: 9,
+            state: 6,
+            model: 9,
+        };
+        assert_eq!(
+            error.to_string(),
+            "the dof map has 9 dofs and the state 6, the model 9"
+        );
+        assert_eq!(
+            QuasiStaticSetupError::UnsymmetricLdlt.to_string(),
+            "solver.linear_solver = \"ldlt\": expected a symmetric tangent, but friction makes this model's tangent unsymmetric; use \"lu\" or leave linear_solver unset"
+        );
+        let linear = LinearSolverError::NonFinite;
+        assert_eq!(
+            QuasiStaticSetupError::from(linear.clone()).to_string(),
+            linear.to_string()
+        );
+    }
 }

@@ -20,7 +20,7 @@
 
 use rayon::prelude::*;
 
-use super::system::SetupError;
+use super::setup_error::SetupError;
 use crate::model::MassCoupling;
 
 /// Nodes per task of the stretch form's correction pass.

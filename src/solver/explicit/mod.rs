@@ -25,20 +25,22 @@
 
 mod chains;
 mod params;
+mod setup_error;
 pub mod step;
 pub mod system;
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use serde::Serialize;
 
-pub use params::{
-    Amplitude, DEFAULT_MAX_INCREMENTS, ExplicitParameters, SettingError, TimeStepControl,
-};
-pub use system::{MassSummary, NODE_BLOCK, SetupError};
+pub use super::amplitude::Amplitude;
+pub use params::{DEFAULT_MAX_INCREMENTS, ExplicitParameters, SettingError, TimeStepControl};
+pub use setup_error::SetupError;
+pub use system::{MassSummary, NODE_BLOCK};
 
 use super::dofs::DofMap;
-use super::newton::{RunStatus, Snapshot};
+use super::status::{RunStatus, Snapshot};
 use crate::model::{Model, State, TermEnergy, TermFailure};
 pub use system::{ExplicitSystem, Update};
 
@@ -269,6 +271,19 @@ struct Buffers {
     motion_partial: Vec<f64>,
 }
 
+impl Buffers {
+    fn new(system: &ExplicitSystem, dofs: usize) -> Self {
+        Self {
+            forces: vec![0.0; system.force_len()],
+            internal: vec![0.0; dofs],
+            partial: vec![0.0; system.partials()],
+            damping_partial: vec![0.0; system.partials()],
+            driven_partial: vec![0.0; system.node_blocks()],
+            motion_partial: vec![0.0; system.node_blocks()],
+        }
+    }
+}
+
 /// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
 /// of `dofs` following `λ(t) = final_load · shape(t/T)`, calling `on_output`
 /// at each time of `output_times` (those in `(0, T]`, sorted; `T` is always
@@ -318,7 +333,9 @@ fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
     }
 }
 
-/// The body of [`solve_explicit`], inside its thread pool.
+/// The body of [`solve_explicit`], inside its thread pool: the set-up
+/// stage, time increments until the last output (or a failure or a stop
+/// request), and the wind-down stage.
 fn integrate(
     model: &mut Model,
     dofs: &DofMap,
@@ -328,7 +345,32 @@ fn integrate(
     state: &mut ExplicitState,
     mut on_output: impl FnMut(&ExplicitRecord, &Snapshot),
 ) -> Result<ExplicitResult, ExplicitError> {
-    let start = Instant::now();
+    let mut run = ExplicitRun::set_up(model, dofs, params, final_load, output_times, state)?;
+    let status = loop {
+        if let ControlFlow::Break(status) = run.increment(&mut on_output) {
+            break status;
+        }
+    };
+    Ok(run.wind_down(status))
+}
+
+/// `λ(t) = final_load · shape(t/T)`.
+fn load_at(params: &ExplicitParameters, final_load: f64, time: f64) -> f64 {
+    final_load * params.load_fraction(time)
+}
+
+/// The step in use for an estimated critical step: `safety × critical`,
+/// or the fixed step.
+fn stable_step(control: TimeStepControl, safety: f64, critical: f64) -> f64 {
+    match control {
+        TimeStepControl::Stable { .. } => safety * critical,
+        TimeStepControl::Fixed { time_step } => time_step,
+    }
+}
+
+/// The state vectors and the dof map have the model's size, and every
+/// term can be integrated explicitly.
+fn check_inputs(model: &Model, dofs: &DofMap, state: &ExplicitState) -> Result<(), ExplicitError> {
     for given in [state.u.len(), state.v.len(), dofs.total] {
         if given != model.dofs() {
             return Err(ExplicitError::StateSize {
@@ -340,73 +382,32 @@ fn integrate(
     for term in &model.terms {
         term.validate_explicit()?;
     }
-    let (safety, update_interval) = match params.time_step {
-        TimeStepControl::Stable {
-            safety_factor,
-            update_interval,
-        } => (safety_factor, update_interval),
-        TimeStepControl::Fixed { .. } => (1.0, usize::MAX),
-    };
-    let u = &mut state.u;
-    let v = &mut state.v;
-    // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
-    // initial state says.
-    let load_at = |t: f64| final_load * params.load_fraction(t);
-    let fraction_at = |t: f64| params.load_fraction(t);
-    for c in &dofs.constrained {
-        u[c.dof] = c.per_unit_load * load_at(0.0);
-    }
-    let start_load = (load_at(0.0), fraction_at(0.0));
-    let system = ExplicitSystem::new(
-        model,
-        dofs,
-        params.mass_scaling_target.map(|t| (t, safety)),
-        &state_at(u, start_load),
-    )?;
-    if system.has_mass_couplings() && params.damping > 0.0 {
-        return Err(ExplicitError::Setting(SettingError {
-            name: "damping",
-            value: crate::config::readable_number(params.damping),
-            expected: "0 with coupling masses (roving mass scaling)",
-        }));
-    }
-    // Terms whose stiffness follows the step (penalties) pick it from the
-    // step of the others, then count in the estimate.
-    let without_penalties = system.critical_time_step_of(model, &state_at(u, start_load), false)?;
-    for term in &mut model.terms {
-        term.explicit_setup(&state_at(u, start_load), &system.masses, without_penalties)?;
-    }
-    let mut buffers = Buffers {
-        forces: vec![0.0; system.force_len()],
-        internal: vec![0.0; dofs.total],
-        partial: vec![0.0; system.partials()],
-        damping_partial: vec![0.0; system.partials()],
-        driven_partial: vec![0.0; system.node_blocks()],
-        motion_partial: vec![0.0; system.node_blocks()],
-    };
+    Ok(())
+}
+
+/// The output times: those of `output_times` in `(0, duration)`, then
+/// `duration`, sorted, without repeats.
+fn output_schedule(output_times: &[f64], duration: f64) -> Vec<f64> {
     let mut times: Vec<f64> = output_times
         .iter()
         .copied()
-        .filter(|t| *t > 0.0 && *t < params.duration)
+        .filter(|t| *t > 0.0 && *t < duration)
         .collect();
-    times.push(params.duration);
+    times.push(duration);
     times.sort_by(f64::total_cmp);
     times.dedup();
+    times
+}
 
-    // The set-up pass counts in the set-up time, not in the terms' shares.
-    system.element_forces(
-        model,
-        &state_at(u, start_load),
-        &mut buffers.forces,
-        &mut vec![0.0; model.terms.len()],
-    )?;
-    let (mut estimator, initial_critical) =
-        step::StepEstimator::new(&system, model, &state_at(u, start_load))?;
-    let stable_step = |critical: f64| match params.time_step {
-        TimeStepControl::Stable { .. } => safety * critical,
-        TimeStepControl::Fixed { time_step } => time_step,
-    };
-    let mut time_step = stable_step(initial_critical);
+/// The first time step from the estimated critical step, refused when it
+/// is infinite or when the run would take more than `max_increments`.
+fn first_time_step(
+    params: &ExplicitParameters,
+    safety: f64,
+    initial_critical: f64,
+    outputs: usize,
+) -> Result<f64, ExplicitError> {
+    let time_step = stable_step(params.time_step, safety, initial_critical);
     if !time_step.is_finite() {
         return Err(ExplicitError::Setting(SettingError {
             name: "time_step",
@@ -415,7 +416,7 @@ fn integrate(
         }));
     }
     // Work estimate: one increment per step, plus one landing per output.
-    let estimated = (params.duration / time_step).ceil() + times.len() as f64;
+    let estimated = (params.duration / time_step).ceil() + outputs as f64;
     if estimated.is_nan() || estimated > params.max_increments as f64 {
         return Err(ExplicitError::TooManyIncrements {
             estimated,
@@ -424,312 +425,558 @@ fn integrate(
             time_step,
         });
     }
-    let mut term_seconds = vec![0.0; model.terms.len()];
-    let mut timings = ExplicitTimings {
-        setup: start.elapsed().as_secs_f64(),
-        ..Default::default()
-    };
-    let element_count = model
-        .terms
-        .iter()
-        .map(|t| t.explicit_stencils().count)
-        .max()
-        .unwrap_or(0);
+    Ok(time_step)
+}
 
-    // Energies at t = 0.
+/// The node pass's gather with the kinetic energies at `state` (velocity
+/// `v` a half step `half_step` back) into `buffers`, and the terms'
+/// energies: the kinetic energy of the free and of the driven dofs, the
+/// damping over the half step and the terms' energies.
+fn kinetic_and_terms(
+    system: &ExplicitSystem,
+    model: &mut Model,
+    buffers: &mut Buffers,
+    damping: f64,
+    state: &State,
+    v: &[f64],
+    half_step: f64,
+) -> Result<(f64, f64, f64, TermEnergy), TermFailure> {
+    system.gather_with_kinetic(
+        &buffers.forces,
+        state.u,
+        v,
+        half_step,
+        damping,
+        &mut buffers.internal,
+        &mut buffers.partial,
+        &mut buffers.damping_partial,
+        &mut buffers.driven_partial,
+    );
+    let kinetic: f64 = buffers.partial.iter().sum();
+    let driven: f64 = buffers.driven_partial.iter().sum();
+    let half_step_damping: f64 = buffers.damping_partial.iter().sum();
+    let mut terms = TermEnergy::default();
+    for term in &mut model.terms {
+        terms += term.energy(state)?;
+    }
+    Ok((kinetic, driven, half_step_damping, terms))
+}
+
+/// The explicit system of `model` at the start state (masses, mass
+/// scaling; no damping with coupling masses), then every term set up for
+/// it: terms whose stiffness follows the step (penalties) pick it from the
+/// step of the others, then count in the estimate.
+fn build_system(
+    model: &mut Model,
+    dofs: &DofMap,
+    params: &ExplicitParameters,
+    safety: f64,
+    start: &State,
+) -> Result<ExplicitSystem, ExplicitError> {
+    let system = ExplicitSystem::new(
+        model,
+        dofs,
+        params.mass_scaling_target.map(|t| (t, safety)),
+        start,
+    )?;
+    if system.has_mass_couplings() && params.damping > 0.0 {
+        return Err(ExplicitError::Setting(SettingError {
+            name: "damping",
+            value: crate::config::readable_number(params.damping),
+            expected: "0 with coupling masses (roving mass scaling)",
+        }));
+    }
+    let without_penalties = system.critical_time_step_of(model, start, false)?;
+    for term in &mut model.terms {
+        term.explicit_setup(start, &system.masses, without_penalties)?;
+    }
+    Ok(system)
+}
+
+/// The energies at `t = 0`, where the velocity is `v_0` itself (no half
+/// step): kinetic, and the terms'.
+fn initial_energies(
+    system: &ExplicitSystem,
+    model: &mut Model,
+    buffers: &mut Buffers,
+    damping: f64,
+    start: &State,
+    v: &[f64],
+) -> Result<Energies, TermFailure> {
     let mut energies = Energies::default();
-    let mut reaction = system.reaction(&buffers.forces);
-    let kinetic_and_terms = |system: &ExplicitSystem,
-                             model: &mut Model,
-                             buffers: &mut Buffers,
-                             state: &State,
-                             v: &[f64],
-                             half_step: f64|
-     -> Result<(f64, f64, f64, TermEnergy), TermFailure> {
-        system.gather_with_kinetic(
-            &buffers.forces,
-            state.u,
-            v,
-            half_step,
-            params.damping,
-            &mut buffers.internal,
-            &mut buffers.partial,
-            &mut buffers.damping_partial,
-            &mut buffers.driven_partial,
-        );
-        let kinetic: f64 = buffers.partial.iter().sum();
-        let driven: f64 = buffers.driven_partial.iter().sum();
-        let half_step_damping: f64 = buffers.damping_partial.iter().sum();
-        let mut terms = TermEnergy::default();
-        for term in &mut model.terms {
-            terms += term.energy(state)?;
+    let (kinetic, driven, _, terms) =
+        kinetic_and_terms(system, model, buffers, damping, start, v, 0.0)?;
+    energies.kinetic = kinetic;
+    energies.driven_kinetic = driven;
+    add_term_energies(&mut energies, terms);
+    Ok(energies)
+}
+
+/// The working state of an explicit run: what [`ExplicitRun::set_up`]
+/// builds once, and the time loop's running values that
+/// [`ExplicitRun::increment`] advances.
+struct ExplicitRun<'a> {
+    model: &'a mut Model,
+    params: &'a ExplicitParameters,
+    final_load: f64,
+    /// The caller's displacement and velocity.
+    u: &'a mut [f64],
+    v: &'a mut [f64],
+    system: ExplicitSystem,
+    estimator: step::StepEstimator,
+    buffers: Buffers,
+    /// Output times in `(0, T]`, sorted, `T` last.
+    times: Vec<f64>,
+    /// Safety factor on the critical step (1 for a fixed step).
+    safety: f64,
+    /// Increments between two stable-step estimates (never, for a fixed
+    /// step).
+    update_interval: usize,
+    initial_critical: f64,
+    /// Stencils of the model's largest term.
+    element_count: usize,
+    /// The energies at `t = 0`: the base of every reported record.
+    initial_energies: Energies,
+    /// `IE + CE + KE` at `t = 0`.
+    initial_energy: f64,
+    /// The loads' work at `t = 0`.
+    initial_load_work: f64,
+    /// From this `|λ|` on, the kinetic ratio counts.
+    ke_check_from: f64,
+    term_seconds: Vec<f64>,
+    timings: ExplicitTimings,
+    /// The stable step in use.
+    time_step: f64,
+    time: f64,
+    load: f64,
+    reaction: f64,
+    /// `∫ R dλ` so far.
+    driven_work: f64,
+    /// Damping dissipation up to `t_{n−½}`.
+    damping_energy: f64,
+    previous_step: f64,
+    increments: usize,
+    next_output: usize,
+    last_output_load: f64,
+    step_range: (f64, f64),
+    stable_range: (f64, f64),
+    landing_steps: (usize, f64),
+    max_kinetic_ratio: f64,
+    max_balance: f64,
+    records: Vec<ExplicitRecord>,
+    warnings: Vec<String>,
+}
+
+impl<'a> ExplicitRun<'a> {
+    /// Set-up stage: checks the inputs, puts the prescribed dofs at
+    /// `λ(0)`, builds the system (masses, mass scaling), sets the terms
+    /// up, and takes the first stable step and the energies at `t = 0`.
+    fn set_up(
+        model: &'a mut Model,
+        dofs: &DofMap,
+        params: &'a ExplicitParameters,
+        final_load: f64,
+        output_times: &[f64],
+        state: &'a mut ExplicitState,
+    ) -> Result<Self, ExplicitError> {
+        let start = Instant::now();
+        check_inputs(model, dofs, state)?;
+        let (safety, update_interval) = match params.time_step {
+            TimeStepControl::Stable {
+                safety_factor,
+                update_interval,
+            } => (safety_factor, update_interval),
+            TimeStepControl::Fixed { .. } => (1.0, usize::MAX),
+        };
+        let u = state.u.as_mut_slice();
+        let v = state.v.as_mut_slice();
+        // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
+        // initial state says.
+        for c in &dofs.constrained {
+            u[c.dof] = c.per_unit_load * load_at(params, final_load, 0.0);
         }
-        Ok((kinetic, driven, half_step_damping, terms))
-    };
-    {
-        // At t = 0 the velocity is v_0 itself: no half step.
-        let (kinetic, driven, _, terms) = kinetic_and_terms(
+        let start_state = state_at(
+            u,
+            (load_at(params, final_load, 0.0), params.load_fraction(0.0)),
+        );
+        let system = build_system(model, dofs, params, safety, &start_state)?;
+        let mut buffers = Buffers::new(&system, dofs.total);
+        let times = output_schedule(output_times, params.duration);
+        // The set-up pass counts in the set-up time, not in the terms' shares.
+        system.element_forces(
+            model,
+            &start_state,
+            &mut buffers.forces,
+            &mut vec![0.0; model.terms.len()],
+        )?;
+        let (estimator, initial_critical) = step::StepEstimator::new(&system, model, &start_state)?;
+        let time_step = first_time_step(params, safety, initial_critical, times.len())?;
+        let term_seconds = vec![0.0; model.terms.len()];
+        let timings = ExplicitTimings {
+            setup: start.elapsed().as_secs_f64(),
+            ..Default::default()
+        };
+        let element_count = model
+            .terms
+            .iter()
+            .map(|t| t.explicit_stencils().count)
+            .max()
+            .unwrap_or(0);
+        let reaction = system.reaction(&buffers.forces);
+        let energies = initial_energies(
             &system,
             model,
             &mut buffers,
-            &state_at(u, start_load),
+            params.damping,
+            &start_state,
             v,
-            0.0,
         )?;
-        energies.kinetic = kinetic;
-        energies.driven_kinetic = driven;
-        add_term_energies(&mut energies, terms);
-    }
-    let initial_energy = energies.internal + energies.contact + energies.kinetic;
-    let initial_load_work = energies.load_work;
-
-    let mut records = Vec::with_capacity(times.len());
-    let mut warnings = Vec::new();
-    let mut time = 0.0;
-    let mut load = load_at(0.0);
-    let mut driven_work = 0.0;
-    let mut previous_step = 0.0;
-    let mut increments = 0usize;
-    let mut step_range = (f64::INFINITY, 0.0_f64);
-    let mut stable_range = (f64::INFINITY, 0.0_f64);
-    let mut landing_steps = (0usize, f64::INFINITY);
-    let mut max_kinetic_ratio = 0.0_f64;
-    let mut max_balance = 0.0_f64;
-    let mut next_output = 0;
-    let mut last_output_load = load;
-    let ke_check_from = 0.1 * final_load.abs();
-    let mut damping_energy = 0.0;
-
-    let status = loop {
-        let Some(&target) = times.get(next_output) else {
-            break RunStatus::Complete;
-        };
-        if increments >= params.max_increments {
-            // The step shrank below the estimate made at the start.
-            break RunStatus::Incomplete {
-                load_reached: last_output_load,
-                load_attempted: load_at(target),
-                reason: format!(
-                    "the increment limit explicit.max_increments = {} is reached at t = {time:.6e} s (time step {time_step:.3e} s)",
-                    params.max_increments
-                ),
-            };
-        }
-        // Land exactly on the next output time.
-        let remaining = target - time;
-        let (dt, lands) = if remaining <= time_step {
-            (remaining, true)
-        } else {
-            (time_step, false)
-        };
-        let time_next = if lands { target } else { time + dt };
-        let load_next = load_at(time_next);
-        let clock = Instant::now();
-        let motion = system.update(
-            &buffers.forces,
+        let load = load_at(params, final_load, 0.0);
+        Ok(Self {
+            initial_energy: energies.internal + energies.contact + energies.kinetic,
+            initial_load_work: energies.load_work,
+            initial_energies: energies,
+            records: Vec::with_capacity(times.len()),
+            warnings: Vec::new(),
+            time: 0.0,
+            load,
+            reaction,
+            driven_work: 0.0,
+            damping_energy: 0.0,
+            previous_step: 0.0,
+            increments: 0,
+            next_output: 0,
+            last_output_load: load,
+            step_range: (f64::INFINITY, 0.0),
+            stable_range: (f64::INFINITY, 0.0),
+            landing_steps: (0, f64::INFINITY),
+            max_kinetic_ratio: 0.0,
+            max_balance: 0.0,
+            ke_check_from: 0.1 * final_load.abs(),
+            model,
+            params,
+            final_load,
             u,
             v,
-            &mut buffers.partial,
-            &mut buffers.motion_partial,
+            system,
+            estimator,
+            buffers,
+            times,
+            safety,
+            update_interval,
+            initial_critical,
+            element_count,
+            term_seconds,
+            timings,
+            time_step,
+        })
+    }
+
+    /// Step stage, one time increment: the node pass to the next time
+    /// (landing exactly on the next output time) and the element pass
+    /// there, the output stage when the increment lands on an output or a
+    /// stop is requested, and a new stable-step estimate every
+    /// `update_interval` increments. Breaks with the run's status.
+    fn increment(
+        &mut self,
+        on_output: &mut impl FnMut(&ExplicitRecord, &Snapshot),
+    ) -> ControlFlow<RunStatus> {
+        let Some(&target) = self.times.get(self.next_output) else {
+            return ControlFlow::Break(RunStatus::Complete);
+        };
+        if self.increments >= self.params.max_increments {
+            // The step shrank below the estimate made at the start.
+            return ControlFlow::Break(RunStatus::Incomplete {
+                load_reached: self.last_output_load,
+                load_attempted: load_at(self.params, self.final_load, target),
+                reason: format!(
+                    "the increment limit explicit.max_increments = {} is reached at t = {:.6e} s (time step {:.3e} s)",
+                    self.params.max_increments, self.time, self.time_step
+                ),
+            });
+        }
+        let (dt, lands, load_next, motion) = self.node_pass(target);
+        let now = (load_next, self.params.load_fraction(self.time));
+        self.element_pass(dt, motion, now)?;
+
+        // On a stop request the state reached is output as a last record.
+        let interrupted = self.params.cancel.is_cancelled();
+        if lands || interrupted {
+            self.output(dt, lands, now, on_output)?;
+        }
+        // (A stop request at the last output comes too late to stop anything.)
+        if interrupted && self.next_output < self.times.len() {
+            return ControlFlow::Break(RunStatus::Interrupted {
+                load_reached: self.last_output_load,
+            });
+        }
+        if self.increments.is_multiple_of(self.update_interval) {
+            self.refresh_time_step(now)?;
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// The node pass of one increment: the step `Δt` (the stable step, or
+    /// what remains to the output time `target`) and every node moved to
+    /// `t + Δt`, with the damping dissipated. Returns `Δt`, whether it
+    /// lands on `target`, `λ(t + Δt)` and the largest displacement change.
+    fn node_pass(&mut self, target: f64) -> (f64, bool, f64, f64) {
+        // Land exactly on the next output time.
+        let remaining = target - self.time;
+        let (dt, lands) = if remaining <= self.time_step {
+            (remaining, true)
+        } else {
+            (self.time_step, false)
+        };
+        let time_next = if lands { target } else { self.time + dt };
+        let load_next = load_at(self.params, self.final_load, time_next);
+        let clock = Instant::now();
+        let motion = self.system.update(
+            &self.buffers.forces,
+            self.u,
+            self.v,
+            &mut self.buffers.partial,
+            &mut self.buffers.motion_partial,
             Update {
-                velocity_step: 0.5 * (previous_step + dt),
+                velocity_step: 0.5 * (self.previous_step + dt),
                 time_step: dt,
-                damping: params.damping,
+                damping: self.params.damping,
                 load_next,
             },
         );
-        if params.damping > 0.0 {
-            damping_energy += buffers.partial.iter().sum::<f64>();
+        if self.params.damping > 0.0 {
+            self.damping_energy += self.buffers.partial.iter().sum::<f64>();
         }
-        timings.node_pass += clock.elapsed().as_secs_f64();
-        time = time_next;
-        previous_step = dt;
-        increments += 1;
-        step_range = (step_range.0.min(dt), step_range.1.max(dt));
-        stable_range = (stable_range.0.min(time_step), stable_range.1.max(time_step));
+        self.timings.node_pass += clock.elapsed().as_secs_f64();
+        self.time = time_next;
+        self.previous_step = dt;
+        self.increments += 1;
+        let time_step = self.time_step;
+        self.step_range = (self.step_range.0.min(dt), self.step_range.1.max(dt));
+        self.stable_range = (
+            self.stable_range.0.min(time_step),
+            self.stable_range.1.max(time_step),
+        );
         if dt < time_step {
-            landing_steps = (landing_steps.0 + 1, landing_steps.1.min(dt));
+            self.landing_steps = (self.landing_steps.0 + 1, self.landing_steps.1.min(dt));
         }
+        (dt, lands, load_next, motion)
+    }
 
+    /// The element pass at the new state (`now`: its load and programme
+    /// fraction, reached by a step `dt`), then the reaction and its work
+    /// over the increment (trapezoidal).
+    fn element_pass(&mut self, dt: f64, motion: f64, now: (f64, f64)) -> ControlFlow<RunStatus> {
         let clock = Instant::now();
-        let now = (load_next, fraction_at(time));
-        let pass = system.element_forces(
-            model,
+        let pass = self.system.element_forces(
+            self.model,
             &State {
                 time_step: dt,
                 motion,
-                ..state_at(u, now)
+                ..state_at(self.u, now)
             },
-            &mut buffers.forces,
-            &mut term_seconds,
+            &mut self.buffers.forces,
+            &mut self.term_seconds,
         );
-        timings.element_pass += clock.elapsed().as_secs_f64();
+        self.timings.element_pass += clock.elapsed().as_secs_f64();
+        let load_next = now.0;
         if let Err(failure) = pass {
-            break RunStatus::Incomplete {
-                load_reached: last_output_load,
+            return ControlFlow::Break(RunStatus::Incomplete {
+                load_reached: self.last_output_load,
                 load_attempted: load_next,
                 reason: format!(
-                    "time increment {increments} (t = {time:.6e} s, load {load_next:.6}): {failure}"
+                    "time increment {} (t = {:.6e} s, load {load_next:.6}): {failure}",
+                    self.increments, self.time
                 ),
-            };
+            });
         }
-        let new_reaction = system.reaction(&buffers.forces);
-        driven_work += 0.5 * (reaction + new_reaction) * (load_next - load);
-        reaction = new_reaction;
-        load = load_next;
+        let new_reaction = self.system.reaction(&self.buffers.forces);
+        self.driven_work += 0.5 * (self.reaction + new_reaction) * (load_next - self.load);
+        self.reaction = new_reaction;
+        self.load = load_next;
+        ControlFlow::Continue(())
+    }
 
-        // On a stop request the state reached is output as a last record.
-        let interrupted = params.cancel.is_cancelled();
-        if lands || interrupted {
-            let clock = Instant::now();
-            let (kinetic, driven, half_step_damping, terms) = match kinetic_and_terms(
-                &system,
-                model,
-                &mut buffers,
-                &state_at(u, now),
-                v,
-                0.5 * dt,
-            ) {
-                Ok(parts) => parts,
-                Err(failure) => {
-                    break RunStatus::Incomplete {
-                        load_reached: last_output_load,
-                        load_attempted: load,
-                        reason: format!("output at t = {time:.6e} s: {failure}"),
-                    };
-                }
-            };
-            if !(kinetic.is_finite() && driven.is_finite()) {
-                // Velocities whose ½ m v² overflows (a stroke in 1e-308 s):
-                // no state worth reporting lies beyond the last output.
-                break RunStatus::Incomplete {
-                    load_reached: last_output_load,
-                    load_attempted: load,
-                    reason: format!(
-                        "output at t = {time:.6e} s: the kinetic energy overflows (free nodes {kinetic:.3e}, driven nodes {driven:.3e} N·mm): the motion is far too fast; lower the loading speed"
-                    ),
-                };
+    /// Output stage: the energies at `t_n` (the kinetic energy from the
+    /// last half-step velocity, the terms', the work and dissipation so
+    /// far), their checks, the record and the caller's `on_output`; `lands`
+    /// says whether this is the output time (not a stop request's).
+    fn output(
+        &mut self,
+        dt: f64,
+        lands: bool,
+        now: (f64, f64),
+        on_output: &mut impl FnMut(&ExplicitRecord, &Snapshot),
+    ) -> ControlFlow<RunStatus> {
+        let clock = Instant::now();
+        let parts = kinetic_and_terms(
+            &self.system,
+            self.model,
+            &mut self.buffers,
+            self.params.damping,
+            &state_at(self.u, now),
+            self.v,
+            0.5 * dt,
+        );
+        let (kinetic, driven, half_step_damping, terms) = match parts {
+            Ok(parts) => parts,
+            Err(failure) => {
+                return ControlFlow::Break(RunStatus::Incomplete {
+                    load_reached: self.last_output_load,
+                    load_attempted: self.load,
+                    reason: format!("output at t = {:.6e} s: {failure}", self.time),
+                });
             }
-            // The reported energies are at t_n: the running damping sum
-            // reaches t_{n−½}, the last half step is added for the report.
-            let mut reported = energies;
-            reported.kinetic = kinetic;
-            reported.driven_kinetic = driven;
-            add_term_energies(&mut reported, terms);
-            reported.load_work -= initial_load_work;
-            reported.external_work = driven_work + reported.load_work;
-            reported.damping = damping_energy + half_step_damping;
-            reported.balance(initial_energy);
-            if reported.relative_balance_error > params.energy_balance_warning
-                && max_balance <= params.energy_balance_warning
-            {
-                warnings.push(format!(
-                    "energy balance: the error is {} % of the largest energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the time step (safety_factor) or the contact stiffness",
-                    percent(reported.relative_balance_error),
-                    percent(params.energy_balance_warning)
-                ));
-            }
-            max_balance = max_balance.max(reported.relative_balance_error);
-            if load.abs() >= ke_check_from && final_load != 0.0 {
-                let ratio = reported.kinetic_ratio();
-                if ratio > params.kinetic_energy_warning
-                    && max_kinetic_ratio <= params.kinetic_energy_warning
-                {
-                    warnings.push(format!(
-                        "not quasi-static: kinetic energy {:.3e} N·mm is {} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the loading speed or the mass scaling",
-                        reported.kinetic + reported.driven_kinetic,
-                        percent(ratio),
-                        percent(params.kinetic_energy_warning)
-                    ));
-                }
-                max_kinetic_ratio = max_kinetic_ratio.max(ratio);
-            }
-            let record = ExplicitRecord {
-                increment: increments,
-                time,
-                load,
-                reaction,
-                time_step,
-                energies: reported,
-            };
-            records.push(record);
-            on_output(
-                &record,
-                &Snapshot {
-                    u,
-                    residual: &buffers.internal,
-                    model,
-                },
-            );
-            last_output_load = load;
-            next_output += usize::from(lands);
-            timings.outputs += clock.elapsed().as_secs_f64();
+        };
+        if !(kinetic.is_finite() && driven.is_finite()) {
+            // Velocities whose ½ m v² overflows (a stroke in 1e-308 s):
+            // no state worth reporting lies beyond the last output.
+            return ControlFlow::Break(RunStatus::Incomplete {
+                load_reached: self.last_output_load,
+                load_attempted: self.load,
+                reason: format!(
+                    "output at t = {:.6e} s: the kinetic energy overflows (free nodes {kinetic:.3e}, driven nodes {driven:.3e} N·mm): the motion is far too fast; lower the loading speed",
+                    self.time
+                ),
+            });
         }
-        // (A stop request at the last output comes too late to stop anything.)
-        if interrupted && next_output < times.len() {
-            break RunStatus::Interrupted {
-                load_reached: last_output_load,
-            };
-        }
+        // The reported energies are at t_n: the running damping sum
+        // reaches t_{n−½}, the last half step is added for the report.
+        let mut reported = self.initial_energies;
+        reported.kinetic = kinetic;
+        reported.driven_kinetic = driven;
+        add_term_energies(&mut reported, terms);
+        reported.load_work -= self.initial_load_work;
+        reported.external_work = self.driven_work + reported.load_work;
+        reported.damping = self.damping_energy + half_step_damping;
+        reported.balance(self.initial_energy);
+        self.check_energies(&reported);
+        let record = ExplicitRecord {
+            increment: self.increments,
+            time: self.time,
+            load: self.load,
+            reaction: self.reaction,
+            time_step: self.time_step,
+            energies: reported,
+        };
+        self.records.push(record);
+        on_output(
+            &record,
+            &Snapshot {
+                u: self.u,
+                residual: &self.buffers.internal,
+                model: self.model,
+            },
+        );
+        self.last_output_load = self.load;
+        self.next_output += usize::from(lands);
+        self.timings.outputs += clock.elapsed().as_secs_f64();
+        ControlFlow::Continue(())
+    }
 
-        if increments.is_multiple_of(update_interval) {
-            let clock = Instant::now();
-            match estimator.estimate(&system, model, &state_at(u, now)) {
-                Ok(critical) => time_step = stable_step(critical),
-                Err(failure) => {
-                    break RunStatus::Incomplete {
-                        load_reached: last_output_load,
-                        load_attempted: load,
-                        reason: format!("stable-step estimate at t = {time:.6e} s: {failure}"),
-                    };
-                }
-            }
-            timings.time_step_estimates += clock.elapsed().as_secs_f64();
-        }
-    };
-
-    for (term, growth) in model.terms.iter().zip(estimator.growth()) {
-        if growth.count > 0 {
-            warnings.push(format!(
-                "stable-step estimate: the frequency bound of '{}' grew {} time(s) past {} times its last refreshed value between refreshes (at most {:.2} times; refreshed every {} estimates, docs/explicit.md \"The stable time step\"): the step may have left the safety factor's margin; lower time_step_update_interval",
-                term.name(),
-                growth.count,
-                step::STALE_MARGIN,
-                growth.largest_ratio,
-                step::REFRESH_EVERY,
+    /// The energy checks of an output: a warning the first time the
+    /// balance error, or (from 10 % of the final load on) the kinetic
+    /// ratio, passes its level; the largest of each so far.
+    fn check_energies(&mut self, reported: &Energies) {
+        let params = self.params;
+        let (load, time) = (self.load, self.time);
+        if reported.relative_balance_error > params.energy_balance_warning
+            && self.max_balance <= params.energy_balance_warning
+        {
+            self.warnings.push(format!(
+                "energy balance: the error is {} % of the largest energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the time step (safety_factor) or the contact stiffness",
+                percent(reported.relative_balance_error),
+                percent(params.energy_balance_warning)
             ));
         }
+        self.max_balance = self.max_balance.max(reported.relative_balance_error);
+        if load.abs() >= self.ke_check_from && self.final_load != 0.0 {
+            let ratio = reported.kinetic_ratio();
+            if ratio > params.kinetic_energy_warning
+                && self.max_kinetic_ratio <= params.kinetic_energy_warning
+            {
+                self.warnings.push(format!(
+                    "not quasi-static: kinetic energy {:.3e} N·mm is {} % of the internal energy at load {load:.4} (t = {time:.4e} s), above the {} % warning level; lower the loading speed or the mass scaling",
+                    reported.kinetic + reported.driven_kinetic,
+                    percent(ratio),
+                    percent(params.kinetic_energy_warning)
+                ));
+            }
+            self.max_kinetic_ratio = self.max_kinetic_ratio.max(ratio);
+        }
     }
-    Ok(ExplicitResult {
-        status,
-        records,
-        increments,
-        element_cycles: increments as u64 * element_count as u64,
-        initial_critical_time_step: initial_critical,
-        time_step_range: if increments > 0 {
-            step_range
-        } else {
-            (0.0, 0.0)
-        },
-        stable_step_range: if increments > 0 {
-            stable_range
-        } else {
-            (0.0, 0.0)
-        },
-        landing_steps,
-        mass: system.mass,
-        max_kinetic_ratio,
-        max_relative_balance_error: max_balance,
-        warnings,
-        timings,
-        term_seconds: model
-            .terms
-            .iter()
-            .map(|t| t.name().to_string())
-            .zip(term_seconds)
-            .collect(),
-        threads: rayon::current_num_threads(),
-    })
+
+    /// A new stable-step estimate at the state reached (`now`: its load
+    /// and programme fraction).
+    fn refresh_time_step(&mut self, now: (f64, f64)) -> ControlFlow<RunStatus> {
+        let clock = Instant::now();
+        match self
+            .estimator
+            .estimate(&self.system, self.model, &state_at(self.u, now))
+        {
+            Ok(critical) => {
+                self.time_step = stable_step(self.params.time_step, self.safety, critical);
+            }
+            Err(failure) => {
+                return ControlFlow::Break(RunStatus::Incomplete {
+                    load_reached: self.last_output_load,
+                    load_attempted: self.load,
+                    reason: format!("stable-step estimate at t = {:.6e} s: {failure}", self.time),
+                });
+            }
+        }
+        self.timings.time_step_estimates += clock.elapsed().as_secs_f64();
+        ControlFlow::Continue(())
+    }
+
+    /// Wind-down stage: a warning for every term whose frequency bound
+    /// grew past its margin between refreshes, and the result.
+    fn wind_down(mut self, status: RunStatus) -> ExplicitResult {
+        for (term, growth) in self.model.terms.iter().zip(self.estimator.growth()) {
+            if growth.count > 0 {
+                self.warnings.push(format!(
+                    "stable-step estimate: the frequency bound of '{}' grew {} time(s) past {} times its last refreshed value between refreshes (at most {:.2} times; refreshed every {} estimates, docs/explicit.md \"The stable time step\"): the step may have left the safety factor's margin; lower time_step_update_interval",
+                    term.name(),
+                    growth.count,
+                    step::STALE_MARGIN,
+                    growth.largest_ratio,
+                    step::REFRESH_EVERY,
+                ));
+            }
+        }
+        let increments = self.increments;
+        ExplicitResult {
+            status,
+            records: self.records,
+            increments,
+            element_cycles: increments as u64 * self.element_count as u64,
+            initial_critical_time_step: self.initial_critical,
+            time_step_range: if increments > 0 {
+                self.step_range
+            } else {
+                (0.0, 0.0)
+            },
+            stable_step_range: if increments > 0 {
+                self.stable_range
+            } else {
+                (0.0, 0.0)
+            },
+            landing_steps: self.landing_steps,
+            mass: self.system.mass,
+            max_kinetic_ratio: self.max_kinetic_ratio,
+            max_relative_balance_error: self.max_balance,
+            warnings: self.warnings,
+            timings: self.timings,
+            term_seconds: self
+                .model
+                .terms
+                .iter()
+                .map(|t| t.name().to_string())
+                .zip(self.term_seconds)
+                .collect(),
+            threads: rayon::current_num_threads(),
+        }
+    }
 }
 
 /// A fraction as a percentage for a warning: two decimals, or three

@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use super::super::dofs::DofMap;
 use super::chains::{MassChains, StretchEntry};
+use super::setup_error::SetupError;
 use crate::model::{FrequencyBound, Masses, Model, NO_SLOT, State, TermFailure, rounded_up};
 
 /// Nodes per block of the node pass. Partial sums are taken per block and
@@ -35,36 +36,6 @@ pub struct MassSummary {
     /// The coupling masses' form: `"stretch"` (on the stretch rate
     /// along each edge), `"full"` (on all components) or `"none"`.
     pub coupling_form: &'static str,
-}
-
-/// Why a model cannot be integrated.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SetupError {
-    /// A node with a free dof carries no mass (no element touches it).
-    #[error(
-        "node {node} has a free dof but no mass: no triangle uses it (constrain it or remove it)"
-    )]
-    MasslessNode {
-        /// Node index.
-        node: usize,
-    },
-    /// An extra dof (a floating rigid body) is free but has no mass.
-    #[error("the dof of {name} is free but has no mass (give the rigid body a mass)")]
-    MasslessExtra {
-        /// The extra dof's name.
-        name: String,
-    },
-    /// A term fails at the initial state.
-    #[error("initial state: {0}")]
-    Term(TermFailure),
-    /// The terms' coupling masses cannot be solved by chains.
-    #[error("coupling masses at node {node}: {reason}")]
-    MassCoupling {
-        /// The node.
-        node: usize,
-        /// What is wrong.
-        reason: String,
-    },
 }
 
 /// Coefficients of one node-pass update (central difference, leapfrog form).
