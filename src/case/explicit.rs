@@ -313,3 +313,96 @@ impl ExplicitSettings {
         }
     }
 }
+
+/// The top-level `solver` key: a method name or a `[solver]` table of
+/// Newton knobs (quasi-static).
+pub(super) fn solver_choice(
+    choice: Option<Spanned<SolverChoice>>,
+    check: &TomlChecker,
+) -> Result<(SolverKind, NewtonParameters), ConfigError> {
+    Ok(match choice {
+        None => (SolverKind::QuasiStatic, NewtonParameters::default()),
+        Some(choice) => {
+            let line = check.line_of(&choice);
+            match choice.into_inner() {
+                SolverChoice::Newton(p) => (SolverKind::QuasiStatic, p),
+                SolverChoice::Method(m) => match m.as_str() {
+                    "quasi-static" => (SolverKind::QuasiStatic, NewtonParameters::default()),
+                    "explicit" => (SolverKind::Explicit, NewtonParameters::default()),
+                    other => {
+                        return Err(check.invalid(
+                            line,
+                            "solver",
+                            format!("\"{other}\""),
+                            "\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs",
+                        ));
+                    }
+                },
+            }
+        }
+    })
+}
+
+/// Checks the Newton knobs of a `[solver]` table.
+pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {
+    let bad = |key: &str, value: String, expected: &str| ConfigError::Invalid {
+        source: source.to_string(),
+        line: 0,
+        key: format!("solver.{key}"),
+        value,
+        expected: expected.to_string(),
+    };
+    let pos = |key: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(bad(key, crate::config::readable_number(v), "a number > 0"))
+        }
+    };
+    pos("initial_increment", p.initial_increment)?;
+    pos("max_increment", p.max_increment)?;
+    pos("min_increment", p.min_increment)?;
+    pos("residual_tolerance", p.residual_tolerance)?;
+    pos("energy_tolerance", p.energy_tolerance)?;
+    pos("force_floor", p.force_floor)?;
+    if p.min_increment > p.max_increment {
+        return Err(bad(
+            "min_increment",
+            crate::config::readable_number(p.min_increment),
+            "at most max_increment",
+        ));
+    }
+    if !(p.growth >= 1.0 && p.growth.is_finite()) {
+        return Err(bad(
+            "growth",
+            crate::config::readable_number(p.growth),
+            "a factor ≥ 1",
+        ));
+    }
+    if !(p.cutback > 0.0 && p.cutback < 1.0) {
+        return Err(bad(
+            "cutback",
+            crate::config::readable_number(p.cutback),
+            "a factor in (0, 1)",
+        ));
+    }
+    if p.max_iterations == 0 {
+        return Err(bad("max_iterations", "0".into(), "at least 1"));
+    }
+    pos("stabilisation_fraction", p.stabilisation_fraction)?;
+    if let Some(t) = p.max_wall_seconds {
+        pos("max_wall_seconds", t)?;
+    }
+    if let Some(t) = p.inertia_duration {
+        pos("inertia_duration", t)?;
+    }
+    pos("stabilisation_limit", p.stabilisation_limit)?;
+    if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
+        return Err(bad(
+            "stabilisation_factor",
+            crate::config::readable_number(p.stabilisation_factor),
+            "a number ≥ 0",
+        ));
+    }
+    Ok(())
+}
