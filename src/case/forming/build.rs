@@ -2,12 +2,16 @@
 //! into one node numbering, a membrane (and bending) term per ply, a dof
 //! per tool, contact terms, gravity and dead loads, rigid-body masses and
 //! the Dirichlet conditions (`docs/model.md`).
+//! The stages, in order: the plies' meshes and membranes, the boundary
+//! conditions, bending, the probes, gravity and dead loads, the tools with
+//! their contact terms, and the ply–ply contacts. Field-by-field
+//! documentation of the case: `docs/cases.md`, "Forming cases".
 
 use std::sync::Arc;
 
 use nalgebra::{SymmetricEigen, Vector3};
 
-use super::{FormingCase, PlyMesh, ToolMotion, ToolShape, ToolSpec};
+use super::{FormingCase, PlyMesh, PlySpec, ToolMotion, ToolShape, ToolSpec, pyramid_of};
 use crate::config::readable_number;
 use crate::contact::{
     Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole,
@@ -139,7 +143,7 @@ fn tool_surface(
             placed(shape, placement, drawing)
         }
         ToolShape::Pyramid { .. } => {
-            let (shape, placement) = super::pyramid_of(spec)
+            let (shape, placement) = pyramid_of(spec)
                 .map_err(|x| context(&x))?
                 .ok_or_else(|| context(&"not a pyramid"))?;
             let drawing = shape.tessellate(DRAWN_SEGMENTS).map_err(|x| context(&x))?;
@@ -376,8 +380,37 @@ impl FormingCase {
         }
         let mut model = Model::new(nodes.len());
         let mut dirichlet = Vec::new();
+        let plies = self.ply_terms(meshes, &offsets, &nodes, &mut model, &mut dirichlet)?;
+        let boundary_nodes = self.boundary_conditions(&plies, &mut dirichlet)?;
+        self.bending_terms(&plies, &nodes, &boundary_nodes, &mut model)?;
+        let probe_nodes = self.probe_nodes(&plies)?;
+        self.gravity_and_loads(&plies, nodes.len(), &mut model)?;
+        let tools = self.tool_terms(&plies, nodes.len(), &mut model, &mut dirichlet)?;
+        self.ply_contact_terms(&plies, &mut model)?;
+        Ok(FormingModel {
+            model,
+            dirichlet,
+            plies,
+            tools,
+            nodes,
+            boundary_nodes,
+            probe_nodes,
+        })
+    }
+
+    /// Each ply's membrane term on its meshes' nodes (numbered from its
+    /// offset), its node group, and a fixed node for every node no
+    /// triangle uses.
+    fn ply_terms(
+        &self,
+        meshes: Vec<Mesh>,
+        offsets: &[usize],
+        nodes: &[Vector3<f64>],
+        model: &mut Model,
+        dirichlet: &mut Vec<Dirichlet>,
+    ) -> Result<Vec<BuiltPly>, String> {
         let mut plies = Vec::new();
-        for (p, (mesh, &offset)) in meshes.into_iter().zip(&offsets).enumerate() {
+        for (p, (mesh, &offset)) in meshes.into_iter().zip(offsets).enumerate() {
             let spec = &self.plies[p];
             let triangles: Vec<[usize; 3]> = mesh
                 .triangles
@@ -385,7 +418,7 @@ impl FormingCase {
                 .map(|t| t.map(|n| n + offset))
                 .collect();
             let membrane = MembraneModel::new(
-                nodes.clone(),
+                nodes.to_vec(),
                 triangles,
                 &mesh.fibres,
                 spec.material.material,
@@ -434,7 +467,16 @@ impl FormingCase {
                 thickness: spec.thickness,
             });
         }
+        Ok(plies)
+    }
 
+    /// The Dirichlet conditions of the boundaries on their node sets, and
+    /// the model nodes of each set.
+    fn boundary_conditions(
+        &self,
+        plies: &[BuiltPly],
+        dirichlet: &mut Vec<Dirichlet>,
+    ) -> Result<Vec<Vec<usize>>, String> {
         // Boundary conditions on node sets.
         let mut boundary_nodes = Vec::new();
         for b in &self.boundaries {
@@ -455,11 +497,21 @@ impl FormingCase {
             }
             boundary_nodes.push(global);
         }
+        Ok(boundary_nodes)
+    }
 
+    /// A bending term per ply with bending.
+    fn bending_terms(
+        &self,
+        plies: &[BuiltPly],
+        nodes: &[Vector3<f64>],
+        boundary_nodes: &[Vec<usize>],
+        model: &mut Model,
+    ) -> Result<(), String> {
         // Bending per ply, with a fixed rotation on edges whose nodes are in
         // a boundary set with rotation = "clamped".
         let mut clamped = vec![false; nodes.len()];
-        for (b, set) in self.boundaries.iter().zip(&boundary_nodes) {
+        for (b, set) in self.boundaries.iter().zip(boundary_nodes) {
             if b.clamp_rotation {
                 for &n in set {
                     clamped[n] = true;
@@ -479,7 +531,7 @@ impl FormingCase {
             };
             let term = BendingTerm::new(
                 name,
-                &nodes,
+                nodes,
                 &ply.membrane.triangles,
                 &ply.mesh.fibres,
                 &clamped,
@@ -488,7 +540,11 @@ impl FormingCase {
             .map_err(|e| format!("{}: ply \"{}\": bending: {e}", self.source, spec.name))?;
             model.add(term);
         }
+        Ok(())
+    }
 
+    /// The model nodes of each probe's node set.
+    fn probe_nodes(&self, plies: &[BuiltPly]) -> Result<Vec<Vec<usize>>, String> {
         let mut probe_nodes = Vec::new();
         for p in &self.probes {
             let ply = &plies[p.ply];
@@ -500,7 +556,17 @@ impl FormingCase {
             })?;
             probe_nodes.push(set.iter().map(|n| n + ply.node_offset).collect());
         }
+        Ok(probe_nodes)
+    }
 
+    /// The gravity term (from each ply's areal mass) and a dead-load term
+    /// per `[[load]]`.
+    fn gravity_and_loads(
+        &self,
+        plies: &[BuiltPly],
+        node_count: usize,
+        model: &mut Model,
+    ) -> Result<(), String> {
         // Gravity from each ply's areal mass, at its nodes.
         if let Some(g) = &self.gravity {
             let mut forces = Vec::new();
@@ -515,7 +581,7 @@ impl FormingCase {
             }
             model.add(DeadLoad::new(
                 "gravity",
-                nodes.len(),
+                node_count,
                 forces,
                 vec![],
                 g.amplitude,
@@ -535,145 +601,130 @@ impl FormingCase {
             let forces = set.iter().map(|n| (n + ply.node_offset, share)).collect();
             model.add(DeadLoad::new(
                 format!("load {}", i + 1),
-                nodes.len(),
+                node_count,
                 forces,
                 vec![],
                 l.amplitude,
             ));
         }
+        Ok(())
+    }
 
+    /// Each tool's surface, its dof with its condition or its mass and
+    /// weight, and its contact term with each ply.
+    fn tool_terms(
+        &self,
+        plies: &[BuiltPly],
+        node_count: usize,
+        model: &mut Model,
+        dirichlet: &mut Vec<Dirichlet>,
+    ) -> Result<Vec<BuiltTool>, String> {
         // Tools: one dof each (fixed, driven or free), and a contact term
         // per ply and tool.
         let mut tools = Vec::new();
         for spec in &self.tools {
             let (surface, drawing) = tool_surface(self, spec)?;
-            let extra = model.add_extra(spec.name.clone());
-            let dof = model.extra_dof(extra);
-            let direction = match spec.motion {
-                ToolMotion::Fixed => {
-                    dirichlet.push(Dirichlet::dof(dof, 0.0));
-                    spec.axis
-                }
-                ToolMotion::Prescribed {
-                    direction,
-                    displacement,
-                } => {
-                    dirichlet.push(Dirichlet::dof(dof, displacement));
-                    direction
-                }
-                ToolMotion::Floating {
-                    direction,
-                    mass,
-                    weight,
-                } => {
-                    model.add(RigidBodyMass::new(
-                        format!("mass of {}", spec.name),
-                        extra,
-                        mass,
-                    ));
-                    model.add(DeadLoad::new(
-                        format!("weight of {}", spec.name),
-                        nodes.len(),
-                        vec![],
-                        vec![(extra, weight)],
-                        crate::model::LoadAmplitude::Constant,
-                    ));
-                    direction
-                }
-            };
-            for (ply, ply_spec) in plies.iter().zip(&self.plies) {
-                let offset = self.contact.offset.unwrap_or(0.5 * ply_spec.thickness);
-                let count = ply.mesh.nodes.len();
-                let mean_area = ply.nodal_area.iter().sum::<f64>() / count.max(1) as f64;
-                let automatic = reference_modulus(&ply_spec.material.material) * ply_spec.thickness;
-                let penalties: Vec<f64> = ply
-                    .nodal_area
-                    .iter()
-                    .map(|a| match self.contact.penalty {
-                        Some(p) => p,
-                        None => self.contact.penalty_scale * automatic * a / mean_area,
-                    })
-                    .collect();
-                if let Some((n, p)) = penalties
-                    .iter()
-                    .enumerate()
-                    .find(|(_, p)| !(p.is_finite() && **p > 0.0))
-                {
-                    return Err(format!(
-                        "{}: contact of ply \"{}\" with tool \"{}\": node {}: penalty {p} N/mm: expected a positive stiffness (set contact.penalty)",
-                        self.source,
-                        ply.name,
-                        spec.name,
-                        ply.mesh.node_label(n)
-                    ));
-                }
-                // A mid-surface inside the tool (more than the offset into
-                // the contact layer) is a set-up error.
-                for (n, x) in ply.mesh.nodes.iter().enumerate() {
-                    if let Some(point) = surface.closest(x, offset)
-                        && point.distance < 0.0
-                    {
-                        return Err(format!(
-                            "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {} mm inside the tool; the mid-surface may sit at most the contact offset ({} mm) from touching: move the tool or the ply",
-                            self.source,
-                            spec.name,
-                            ply.name,
-                            ply.mesh.node_label(n),
-                            readable_number(x.x),
-                            readable_number(x.y),
-                            readable_number(x.z),
-                            {
-                                let depth = -point.distance;
-                                if depth < 1e6 {
-                                    format!("{depth:.4}")
-                                } else {
-                                    readable_number(depth)
-                                }
-                            },
-                            readable_number(offset)
-                        ));
-                    }
-                }
-                let name = if self.plies.len() == 1 {
-                    format!("contact with {}", spec.name)
-                } else {
-                    format!("contact of {} with {}", ply.name, spec.name)
-                };
-                model.add(ToolContact::new(
-                    name,
-                    surface.clone(),
-                    direction,
-                    extra,
-                    nodes.len(),
-                    (0..count).map(|n| n + ply.node_offset).collect(),
-                    ply.mesh.nodes.clone(),
-                    vec![offset; count],
-                    ply.nodal_area.clone(),
-                    penalties,
-                    ContactOptions {
-                        friction: spec.friction,
-                        gap_tolerance: self
-                            .contact
-                            .gap_tolerance
-                            .unwrap_or(0.01 * ply_spec.thickness),
-                        multiplier_tolerance: self.contact.multiplier_tolerance,
-                        tangential_penalty_scale: self.contact.tangential_penalty_scale,
-                        smoothing: self.contact.smoothing,
-                        explicit_stiffness: self.contact.explicit_penalty(),
-                        explicit_damping: self.contact.explicit_damping,
-                    },
-                ));
-            }
-            tools.push(BuiltTool {
+            let (extra, dof, direction) = tool_dof(spec, node_count, model, dirichlet);
+            let tool = BuiltTool {
                 spec: spec.clone(),
                 extra,
                 dof,
                 direction,
                 drawing,
-            });
+            };
+            for (ply, ply_spec) in plies.iter().zip(&self.plies) {
+                model.add(self.tool_contact(&tool, &surface, ply, ply_spec, node_count)?);
+            }
+            tools.push(tool);
         }
-        // Ply–ply contacts (explicit path only; the case refuses them on
-        // the quasi-static one).
+        Ok(tools)
+    }
+
+    /// The contact term of a tool with a ply, its penalties checked and
+    /// the ply checked not to start inside the tool.
+    fn tool_contact(
+        &self,
+        tool: &BuiltTool,
+        surface: &Arc<dyn RigidSurface>,
+        ply: &BuiltPly,
+        ply_spec: &PlySpec,
+        node_count: usize,
+    ) -> Result<ToolContact, String> {
+        let (spec, direction, extra) = (&tool.spec, tool.direction, tool.extra);
+        let offset = self.contact.offset.unwrap_or(0.5 * ply_spec.thickness);
+        let count = ply.mesh.nodes.len();
+        let mean_area = ply.nodal_area.iter().sum::<f64>() / count.max(1) as f64;
+        let penalties = self.contact_penalties(spec, ply, ply_spec, mean_area)?;
+        check_outside(self, spec, surface, ply, offset)?;
+        let name = if self.plies.len() == 1 {
+            format!("contact with {}", spec.name)
+        } else {
+            format!("contact of {} with {}", ply.name, spec.name)
+        };
+        Ok(ToolContact::new(
+            name,
+            surface.clone(),
+            direction,
+            extra,
+            node_count,
+            (0..count).map(|n| n + ply.node_offset).collect(),
+            ply.mesh.nodes.to_vec(),
+            vec![offset; count],
+            ply.nodal_area.clone(),
+            penalties,
+            ContactOptions {
+                friction: spec.friction,
+                gap_tolerance: self
+                    .contact
+                    .gap_tolerance
+                    .unwrap_or(0.01 * ply_spec.thickness),
+                multiplier_tolerance: self.contact.multiplier_tolerance,
+                tangential_penalty_scale: self.contact.tangential_penalty_scale,
+                smoothing: self.contact.smoothing,
+                explicit_stiffness: self.contact.explicit_penalty(),
+                explicit_damping: self.contact.explicit_damping,
+            },
+        ))
+    }
+
+    /// The normal penalty of each of a ply's nodes against a tool: the
+    /// given one, or the automatic one scaled by the node's area; each must
+    /// be a positive number.
+    fn contact_penalties(
+        &self,
+        spec: &ToolSpec,
+        ply: &BuiltPly,
+        ply_spec: &PlySpec,
+        mean_area: f64,
+    ) -> Result<Vec<f64>, String> {
+        let automatic = reference_modulus(&ply_spec.material.material) * ply_spec.thickness;
+        let penalties: Vec<f64> = ply
+            .nodal_area
+            .iter()
+            .map(|a| match self.contact.penalty {
+                Some(p) => p,
+                None => self.contact.penalty_scale * automatic * a / mean_area,
+            })
+            .collect();
+        if let Some((n, p)) = penalties
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !(p.is_finite() && **p > 0.0))
+        {
+            return Err(format!(
+                "{}: contact of ply \"{}\" with tool \"{}\": node {}: penalty {p} N/mm: expected a positive stiffness (set contact.penalty)",
+                self.source,
+                ply.name,
+                spec.name,
+                ply.mesh.node_label(n)
+            ));
+        }
+        Ok(penalties)
+    }
+
+    /// A contact term per `[[ply_contact]]` (explicit path only; the case
+    /// refuses them on the quasi-static one).
+    fn ply_contact_terms(&self, plies: &[BuiltPly], model: &mut Model) -> Result<(), String> {
         for spec in &self.ply_contacts {
             let surface = |k: usize| {
                 let ply = &plies[k];
@@ -682,7 +733,7 @@ impl FormingCase {
                     nodes: (0..ply.mesh.nodes.len())
                         .map(|n| n + ply.node_offset)
                         .collect(),
-                    reference: ply.mesh.nodes.clone(),
+                    reference: ply.mesh.nodes.to_vec(),
                     triangles: ply.mesh.triangles.clone(),
                     thickness: ply.thickness,
                 }
@@ -703,14 +754,89 @@ impl FormingCase {
             .map_err(|e| format!("{}: {e}", self.source))?;
             model.add(term);
         }
-        Ok(FormingModel {
-            model,
-            dirichlet,
-            plies,
-            tools,
-            nodes,
-            boundary_nodes,
-            probe_nodes,
-        })
+        Ok(())
     }
+}
+
+/// A tool's extra dof: fixed, driven to its displacement, or free with its
+/// mass and weight; its index among the extras, its global dof and the
+/// unit direction it moves along.
+fn tool_dof(
+    spec: &ToolSpec,
+    node_count: usize,
+    model: &mut Model,
+    dirichlet: &mut Vec<Dirichlet>,
+) -> (usize, usize, Vector3<f64>) {
+    let extra = model.add_extra(spec.name.clone());
+    let dof = model.extra_dof(extra);
+    let direction = match spec.motion {
+        ToolMotion::Fixed => {
+            dirichlet.push(Dirichlet::dof(dof, 0.0));
+            spec.axis
+        }
+        ToolMotion::Prescribed {
+            direction,
+            displacement,
+        } => {
+            dirichlet.push(Dirichlet::dof(dof, displacement));
+            direction
+        }
+        ToolMotion::Floating {
+            direction,
+            mass,
+            weight,
+        } => {
+            model.add(RigidBodyMass::new(
+                format!("mass of {}", spec.name),
+                extra,
+                mass,
+            ));
+            model.add(DeadLoad::new(
+                format!("weight of {}", spec.name),
+                node_count,
+                vec![],
+                vec![(extra, weight)],
+                crate::model::LoadAmplitude::Constant,
+            ));
+            direction
+        }
+    };
+    (extra, dof, direction)
+}
+
+/// Refuses a ply whose mid-surface starts inside a tool (more than the
+/// contact `offset` into the contact layer): a set-up error.
+fn check_outside(
+    case: &FormingCase,
+    spec: &ToolSpec,
+    surface: &Arc<dyn RigidSurface>,
+    ply: &BuiltPly,
+    offset: f64,
+) -> Result<(), String> {
+    for (n, x) in ply.mesh.nodes.iter().enumerate() {
+        if let Some(point) = surface.closest(x, offset)
+            && point.distance < 0.0
+        {
+            return Err(format!(
+                "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {} mm inside the tool; the mid-surface may sit at most the contact offset ({} mm) from touching: move the tool or the ply",
+                case.source,
+                spec.name,
+                ply.name,
+                ply.mesh.node_label(n),
+                readable_number(x.x),
+                readable_number(x.y),
+                readable_number(x.z),
+                {
+                    let depth = -point.distance;
+                    if depth < 1e6 {
+                        format!("{depth:.4}")
+                    } else {
+                        readable_number(depth)
+                    }
+                },
+                readable_number(offset)
+            ));
+        }
+    }
+    Ok(())
 }
