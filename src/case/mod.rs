@@ -2,10 +2,12 @@
 //! off-axis tension test is; the solver sees a membrane and Dirichlet
 //! conditions. Field-by-field documentation: `docs/cases.md`.
 
+pub mod error;
 pub mod explicit;
 pub mod forming;
 pub mod forming_model;
 pub mod oat;
 
+pub use error::BuildError;
 pub use explicit::{ExplicitSettings, SolverKind};
 pub use oat::{OatCase, OatModel, Zone};

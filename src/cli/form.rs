@@ -846,7 +846,7 @@ pub fn run_forming_with(
     progress: Progress,
     cancel: &CancelToken,
 ) -> Result<FormingSummary, String> {
-    let built = case.build()?;
+    let built = case.build().map_err(|e| e.to_string())?;
     let readout = Readout::new(case, &built)?;
     let mut folder = RunFolder::prepare(out, &case.source, &case.title, &["vtu", "maps"])?;
     run_built(case, built, readout, &mut folder, (progress, cancel))
@@ -865,6 +865,7 @@ pub fn run_forming_in(
 ) -> Result<FormingSummary, String> {
     let built = case
         .build()
+        .map_err(|e| e.to_string())
         .and_then(|built| Readout::new(case, &built).map(|readout| (built, readout)));
     let (built, readout) = folder.failed_on_error(built)?;
     run_built(case, built, readout, folder, (progress, cancel))

@@ -502,7 +502,7 @@ pub fn run_case_with(
     progress: Progress,
     cancel: &CancelToken,
 ) -> Result<RunSummary, String> {
-    let built = case.build()?;
+    let built = case.build().map_err(|e| e.to_string())?;
     let mut folder = RunFolder::prepare(out, &case.source, &case.title, &["vtu"])?;
     run_built(case, &built, &mut folder, progress, cancel)
 }
@@ -518,7 +518,7 @@ pub fn run_case_in(
     progress: Progress,
     cancel: &CancelToken,
 ) -> Result<RunSummary, String> {
-    let built = folder.failed_on_error(case.build())?;
+    let built = folder.failed_on_error(case.build().map_err(|e| e.to_string()))?;
     run_built(case, &built, folder, progress, cancel)
 }
 

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use nalgebra::{SymmetricEigen, Vector3};
 
 use super::{FormingCase, PlyMesh, PlySpec, ToolMotion, ToolShape, ToolSpec, pyramid_of};
+use crate::case::error::{BuildError, ToolSurfaceError};
 use crate::config::readable_number;
 use crate::contact::{
     Cylinder, MeshOptions, MeshSurface, Placed, Placement, Plane, PlateWithHole,
@@ -84,10 +85,13 @@ const DRAWN_SEGMENTS: usize = 72;
 fn tool_surface(
     case: &FormingCase,
     spec: &ToolSpec,
-) -> Result<(Arc<dyn RigidSurface>, Tessellation), String> {
-    let context =
-        |e: &dyn std::fmt::Display| format!("{}: tool \"{}\": {e}", case.source, spec.name);
-    let placement = Placement::new(spec.origin, spec.axis, None).map_err(|e| context(&e))?;
+) -> Result<(Arc<dyn RigidSurface>, Tessellation), BuildError> {
+    let context = |e: ToolSurfaceError| BuildError::Tool {
+        file: case.source.clone(),
+        tool: spec.name.clone(),
+        cause: e,
+    };
+    let placement = Placement::new(spec.origin, spec.axis, None).map_err(|e| context(e.into()))?;
     let side = if spec.inside {
         Side::Inside
     } else {
@@ -105,48 +109,53 @@ fn tool_surface(
     Ok(match &spec.shape {
         ToolShape::Plane => {
             let shape = Plane::new();
-            let drawing = shape.tessellate(e, 8).map_err(|x| context(&x))?;
+            let drawing = shape.tessellate(e, 8).map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::Sphere { radius } => {
-            let shape = Sphere::new(*radius, side).map_err(|x| context(&x))?;
+            let shape = Sphere::new(*radius, side).map_err(|x| context(x.into()))?;
             let drawing = shape
                 .tessellate(std::f64::consts::PI, DRAWN_SEGMENTS)
-                .map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::Cylinder { radius } => {
-            let shape = Cylinder::new(*radius, side).map_err(|x| context(&x))?;
+            let shape = Cylinder::new(*radius, side).map_err(|x| context(x.into()))?;
             let drawing = shape
                 .tessellate(-e, e, DRAWN_SEGMENTS)
-                .map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::Torus {
             major_radius,
             minor_radius,
         } => {
-            let shape = Torus::new(*major_radius, *minor_radius, side).map_err(|x| context(&x))?;
-            let drawing = shape.tessellate(DRAWN_SEGMENTS).map_err(|x| context(&x))?;
+            let shape =
+                Torus::new(*major_radius, *minor_radius, side).map_err(|x| context(x.into()))?;
+            let drawing = shape
+                .tessellate(DRAWN_SEGMENTS)
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::PlateWithHole {
             opening_radius,
             fillet_radius,
         } => {
-            let shape =
-                PlateWithHole::new(*opening_radius, *fillet_radius).map_err(|x| context(&x))?;
+            let shape = PlateWithHole::new(*opening_radius, *fillet_radius)
+                .map_err(|x| context(x.into()))?;
             let outer = (opening_radius + fillet_radius + e).max(e);
             let drawing = shape
                 .tessellate(outer, fillet_radius + 10.0, DRAWN_SEGMENTS)
-                .map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::Pyramid { .. } => {
             let (shape, placement) = pyramid_of(spec)
-                .map_err(|x| context(&x))?
-                .ok_or_else(|| context(&"not a pyramid"))?;
-            let drawing = shape.tessellate(DRAWN_SEGMENTS).map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?
+                .ok_or_else(|| context(ToolSurfaceError::NotAPyramid))?;
+            let drawing = shape
+                .tessellate(DRAWN_SEGMENTS)
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::PlateWithPolygonHole {
@@ -160,10 +169,10 @@ fn tool_surface(
                 .map(|p| nalgebra::Vector2::new(p[0], p[1]))
                 .collect();
             let shape = PlateWithPolygonHole::new(&polygon, *corner_radius, *fillet_radius)
-                .map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?;
             let drawing = shape
                 .tessellate(e, fillet_radius + 10.0, DRAWN_SEGMENTS)
-                .map_err(|x| context(&x))?;
+                .map_err(|x| context(x.into()))?;
             placed(shape, placement, drawing)
         }
         ToolShape::Mesh {
@@ -179,9 +188,9 @@ fn tool_surface(
                     flip_normals: false,
                 },
             )
-            .map_err(|x| context(&x))?;
+            .map_err(|x| context(x.into()))?;
             let drawing = shape.tessellation();
-            let translation = Placement::translation(spec.origin).map_err(|x| context(&x))?;
+            let translation = Placement::translation(spec.origin).map_err(|x| context(x.into()))?;
             placed(shape, translation, drawing)
         }
     })
@@ -230,10 +239,12 @@ impl FormingModel {
 }
 
 /// The mesh of a ply, with its fibres set.
-fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
+fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
     let ply = &case.plies[p];
-    let context = |e: &dyn std::fmt::Display| {
-        format!("{}: ply \"{}\": [ply.mesh] {e}", case.source, ply.name)
+    let context = |e: MeshError| BuildError::PlyMesh {
+        file: case.source.clone(),
+        ply: ply.name.clone(),
+        cause: e,
     };
     let angle = ply.fibre_angle_deg.to_radians();
     let in_plane = Vector3::new(angle.cos(), angle.sin(), 0.0);
@@ -258,7 +269,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                 resolution: *resolution,
                 pattern: *pattern,
             })
-            .map_err(|e| context(&generator_key(e)))?
+            .map_err(|e| context(generator_key(e)))?
             .mesh;
             let shift = centre - Vector3::new(0.5 * size[0], 0.5 * size[1], 0.0);
             for x in &mut mesh.nodes {
@@ -276,18 +287,21 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                 Some("inp") => crate::mesh::inp::read_inp(path),
                 Some("msh") => crate::mesh::msh::read_msh(path),
                 _ => {
-                    return Err(format!(
-                        "{}: ply \"{}\": mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
-                        case.source,
-                        ply.name,
-                        path.display()
-                    ));
+                    return Err(BuildError::PlyMeshFormat {
+                        file: case.source.clone(),
+                        ply: ply.name.clone(),
+                        path: path.clone(),
+                    });
                 }
             }
-            .map_err(|e| context(&format!("file = \"{}\": {e}", path.display())))?;
+            .map_err(|e| BuildError::PlyMeshFile {
+                file: case.source.clone(),
+                ply: ply.name.clone(),
+                path: path.clone(),
+                cause: e,
+            })?;
             if mesh.fibres.is_empty() {
-                mesh.set_fibres_from_global(in_plane)
-                    .map_err(|e| context(&e))?;
+                mesh.set_fibres_from_global(in_plane).map_err(context)?;
             }
             mesh
         }
@@ -296,8 +310,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
             centre,
             element_size,
         } => {
-            let mut mesh =
-                crate::mesh::shapes::disk(*radius, *element_size).map_err(|e| context(&e))?;
+            let mut mesh = crate::mesh::shapes::disk(*radius, *element_size).map_err(context)?;
             for x in &mut mesh.nodes {
                 *x += centre;
             }
@@ -320,7 +333,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
                 tail_length: *tail_length,
                 element_size: *element_size,
             })
-            .map_err(|e| context(&e))?;
+            .map_err(context)?;
             for x in &mut mesh.nodes {
                 *x += centre;
             }
@@ -328,10 +341,9 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, String> {
         }
     };
     if mesh.fibres.is_empty() {
-        mesh.set_fibres_from_global(in_plane)
-            .map_err(|e| context(&e))?;
+        mesh.set_fibres_from_global(in_plane).map_err(context)?;
     }
-    mesh.check().map_err(|e| context(&e))?;
+    mesh.check().map_err(context)?;
     Ok(mesh)
 }
 
@@ -368,7 +380,7 @@ impl FormingCase {
     /// A mesh that cannot be made or read, an unknown node set, a
     /// degenerate triangle, a tool that cannot be built — naming the case
     /// file, the ply or tool and the item.
-    pub fn build(&self) -> Result<FormingModel, String> {
+    pub fn build(&self) -> Result<FormingModel, BuildError> {
         let meshes: Vec<Mesh> = (0..self.plies.len())
             .map(|p| ply_mesh(self, p))
             .collect::<Result<_, _>>()?;
@@ -408,7 +420,7 @@ impl FormingCase {
         nodes: &[Vector3<f64>],
         model: &mut Model,
         dirichlet: &mut Vec<Dirichlet>,
-    ) -> Result<Vec<BuiltPly>, String> {
+    ) -> Result<Vec<BuiltPly>, BuildError> {
         let mut plies = Vec::new();
         for (p, (mesh, &offset)) in meshes.into_iter().zip(offsets).enumerate() {
             let spec = &self.plies[p];
@@ -424,13 +436,11 @@ impl FormingCase {
                 spec.material.material,
                 spec.thickness,
             )
-            .map_err(|(e, err)| {
-                format!(
-                    "{}: ply \"{}\": element {}: {err}",
-                    self.source,
-                    spec.name,
-                    mesh.element_label(e)
-                )
+            .map_err(|(e, err)| BuildError::PlyElement {
+                file: self.source.clone(),
+                ply: spec.name.clone(),
+                element: mesh.element_label(e),
+                cause: err,
             })?;
             let name = if self.plies.len() == 1 {
                 "membrane".to_string()
@@ -476,17 +486,20 @@ impl FormingCase {
         &self,
         plies: &[BuiltPly],
         dirichlet: &mut Vec<Dirichlet>,
-    ) -> Result<Vec<Vec<usize>>, String> {
+    ) -> Result<Vec<Vec<usize>>, BuildError> {
         // Boundary conditions on node sets.
         let mut boundary_nodes = Vec::new();
         for b in &self.boundaries {
             let ply = &plies[b.ply];
-            let set = ply.mesh.node_set(&b.nodes).map_err(|e| {
-                format!(
-                    "{}:{}: boundary on ply \"{}\": {e}",
-                    self.source, b.line, ply.name
-                )
-            })?;
+            let set = ply
+                .mesh
+                .node_set(&b.nodes)
+                .map_err(|e| BuildError::Boundary {
+                    file: self.source.clone(),
+                    line: b.line,
+                    ply: ply.name.clone(),
+                    cause: e,
+                })?;
             let global: Vec<usize> = set.iter().map(|n| n + ply.node_offset).collect();
             for &n in &global {
                 for k in 0..3 {
@@ -507,7 +520,7 @@ impl FormingCase {
         nodes: &[Vector3<f64>],
         boundary_nodes: &[Vec<usize>],
         model: &mut Model,
-    ) -> Result<(), String> {
+    ) -> Result<(), BuildError> {
         // Bending per ply, with a fixed rotation on edges whose nodes are in
         // a boundary set with rotation = "clamped".
         let mut clamped = vec![false; nodes.len()];
@@ -522,8 +535,12 @@ impl FormingCase {
             let Some([b11, b22, b66]) = spec.bending else {
                 continue;
             };
-            let stiffness = BendingStiffness::new(b11, b22, b66)
-                .map_err(|e| format!("{}: ply \"{}\": bending: {e}", self.source, spec.name))?;
+            let stiffness =
+                BendingStiffness::new(b11, b22, b66).map_err(|e| BuildError::BendingStiffness {
+                    file: self.source.clone(),
+                    ply: spec.name.clone(),
+                    cause: e,
+                })?;
             let name = if self.plies.len() == 1 {
                 "bending".to_string()
             } else {
@@ -537,22 +554,26 @@ impl FormingCase {
                 &clamped,
                 stiffness,
             )
-            .map_err(|e| format!("{}: ply \"{}\": bending: {e}", self.source, spec.name))?;
+            .map_err(|e| BuildError::Bending {
+                file: self.source.clone(),
+                ply: spec.name.clone(),
+                cause: e,
+            })?;
             model.add(term);
         }
         Ok(())
     }
 
     /// The model nodes of each probe's node set.
-    fn probe_nodes(&self, plies: &[BuiltPly]) -> Result<Vec<Vec<usize>>, String> {
+    fn probe_nodes(&self, plies: &[BuiltPly]) -> Result<Vec<Vec<usize>>, BuildError> {
         let mut probe_nodes = Vec::new();
         for p in &self.probes {
             let ply = &plies[p.ply];
-            let set = ply.mesh.node_set(&p.nodes).map_err(|e| {
-                format!(
-                    "{}:{}: probe on ply \"{}\": {e}",
-                    self.source, p.line, ply.name
-                )
+            let set = ply.mesh.node_set(&p.nodes).map_err(|e| BuildError::Probe {
+                file: self.source.clone(),
+                line: p.line,
+                ply: ply.name.clone(),
+                cause: e,
             })?;
             probe_nodes.push(set.iter().map(|n| n + ply.node_offset).collect());
         }
@@ -566,7 +587,7 @@ impl FormingCase {
         plies: &[BuiltPly],
         node_count: usize,
         model: &mut Model,
-    ) -> Result<(), String> {
+    ) -> Result<(), BuildError> {
         // Gravity from each ply's areal mass, at its nodes.
         if let Some(g) = &self.gravity {
             let mut forces = Vec::new();
@@ -591,11 +612,11 @@ impl FormingCase {
         // Dead loads on node sets: the total shared equally.
         for (i, l) in self.loads.iter().enumerate() {
             let ply = &plies[l.ply];
-            let set = ply.mesh.node_set(&l.nodes).map_err(|e| {
-                format!(
-                    "{}:{}: load on ply \"{}\": {e}",
-                    self.source, l.line, ply.name
-                )
+            let set = ply.mesh.node_set(&l.nodes).map_err(|e| BuildError::Load {
+                file: self.source.clone(),
+                line: l.line,
+                ply: ply.name.clone(),
+                cause: e,
             })?;
             let share = l.force / set.len() as f64;
             let forces = set.iter().map(|n| (n + ply.node_offset, share)).collect();
@@ -618,7 +639,7 @@ impl FormingCase {
         node_count: usize,
         model: &mut Model,
         dirichlet: &mut Vec<Dirichlet>,
-    ) -> Result<Vec<BuiltTool>, String> {
+    ) -> Result<Vec<BuiltTool>, BuildError> {
         // Tools: one dof each (fixed, driven or free), and a contact term
         // per ply and tool.
         let mut tools = Vec::new();
@@ -649,7 +670,7 @@ impl FormingCase {
         ply: &BuiltPly,
         ply_spec: &PlySpec,
         node_count: usize,
-    ) -> Result<ToolContact, String> {
+    ) -> Result<ToolContact, BuildError> {
         let (spec, direction, extra) = (&tool.spec, tool.direction, tool.extra);
         let offset = self.contact.offset.unwrap_or(0.5 * ply_spec.thickness);
         let count = ply.mesh.nodes.len();
@@ -696,7 +717,7 @@ impl FormingCase {
         ply: &BuiltPly,
         ply_spec: &PlySpec,
         mean_area: f64,
-    ) -> Result<Vec<f64>, String> {
+    ) -> Result<Vec<f64>, BuildError> {
         let automatic = reference_modulus(&ply_spec.material.material) * ply_spec.thickness;
         let penalties: Vec<f64> = ply
             .nodal_area
@@ -711,20 +732,20 @@ impl FormingCase {
             .enumerate()
             .find(|(_, p)| !(p.is_finite() && **p > 0.0))
         {
-            return Err(format!(
-                "{}: contact of ply \"{}\" with tool \"{}\": node {}: penalty {p} N/mm: expected a positive stiffness (set contact.penalty)",
-                self.source,
-                ply.name,
-                spec.name,
-                ply.mesh.node_label(n)
-            ));
+            return Err(BuildError::ContactPenalty {
+                file: self.source.clone(),
+                ply: ply.name.clone(),
+                tool: spec.name.clone(),
+                node: ply.mesh.node_label(n),
+                penalty: *p,
+            });
         }
         Ok(penalties)
     }
 
     /// A contact term per `[[ply_contact]]` (explicit path only; the case
     /// refuses them on the quasi-static one).
-    fn ply_contact_terms(&self, plies: &[BuiltPly], model: &mut Model) -> Result<(), String> {
+    fn ply_contact_terms(&self, plies: &[BuiltPly], model: &mut Model) -> Result<(), BuildError> {
         for spec in &self.ply_contacts {
             let surface = |k: usize| {
                 let ply = &plies[k];
@@ -751,7 +772,10 @@ impl FormingCase {
                     skin: spec.skin,
                 },
             )
-            .map_err(|e| format!("{}: {e}", self.source))?;
+            .map_err(|e| BuildError::PlyContact {
+                file: self.source.clone(),
+                cause: e,
+            })?;
             model.add(term);
         }
         Ok(())
@@ -812,30 +836,20 @@ fn check_outside(
     surface: &Arc<dyn RigidSurface>,
     ply: &BuiltPly,
     offset: f64,
-) -> Result<(), String> {
+) -> Result<(), BuildError> {
     for (n, x) in ply.mesh.nodes.iter().enumerate() {
         if let Some(point) = surface.closest(x, offset)
             && point.distance < 0.0
         {
-            return Err(format!(
-                "{}: tool \"{}\" starts inside ply \"{}\": node {} at ({}, {}, {}) mm is {} mm inside the tool; the mid-surface may sit at most the contact offset ({} mm) from touching: move the tool or the ply",
-                case.source,
-                spec.name,
-                ply.name,
-                ply.mesh.node_label(n),
-                readable_number(x.x),
-                readable_number(x.y),
-                readable_number(x.z),
-                {
-                    let depth = -point.distance;
-                    if depth < 1e6 {
-                        format!("{depth:.4}")
-                    } else {
-                        readable_number(depth)
-                    }
-                },
-                readable_number(offset)
-            ));
+            return Err(BuildError::ToolInsidePly {
+                file: case.source.clone(),
+                tool: spec.name.clone(),
+                ply: ply.name.clone(),
+                node: ply.mesh.node_label(n),
+                position: [x.x, x.y, x.z],
+                depth: -point.distance,
+                offset,
+            });
         }
     }
     Ok(())

@@ -11,13 +11,13 @@
 //! `λ ∈ [0, 1]`: prescribed tools and boundaries reach their displacement
 //! at `λ = 1`, ramped loads their full value.
 //!
-//! The case is read table by table: [`ply`] (`[[ply]]`), [`contact`]
-//! (`[[ply_contact]]`, `[contact]`), [`conditions`] (`[gravity]`,
-//! `[[boundary]]`, `[[load]]`, `[[probe]]`, `[[zone]]`), [`tool`]
-//! (`[[tool]]`) and [`output`] (`[output]`); this module checks what
+//! The case is read table by table: `ply.rs` (`[[ply]]`), `contact.rs`
+//! (`[[ply_contact]]`, `[contact]`), `conditions.rs` (`[gravity]`,
+//! `[[boundary]]`, `[[load]]`, `[[probe]]`, `[[zone]]`), `tool.rs`
+//! (`[[tool]]`) and `output.rs` (`[output]`); this module checks what
 //! spans tables (gravity and the explicit solver need every ply's areal
 //! mass, ply–ply contact needs the explicit solver, a run where nothing
-//! moves needs a duration) and computes the stroke. [`build`] turns the
+//! moves needs a duration) and computes the stroke. `build.rs` turns the
 //! validated case into a model.
 
 use std::path::Path;

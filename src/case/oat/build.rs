@@ -6,6 +6,7 @@
 use nalgebra::Vector2;
 
 use super::{MeshSource, OatCase, OatModel, Zone};
+use crate::case::BuildError;
 use crate::mesh::Mesh;
 use crate::mesh::generate::{OatSpecimen, oat_specimen};
 use crate::model::{MembraneModel, MembraneOptions, Model};
@@ -17,7 +18,7 @@ impl OatCase {
     /// # Errors
     /// A mesh that cannot be generated or read, a missing clamp set, a
     /// degenerate triangle — with the file and element named.
-    pub fn build(&self) -> Result<OatModel, String> {
+    pub fn build(&self) -> Result<OatModel, BuildError> {
         let (mut mesh, edge_deviation_deg, fixed, moving) = self.specimen_mesh()?;
         let (fixed_nodes, moving_nodes) = self.clamp_nodes(&mut mesh, &fixed, &moving)?;
         let dirichlet = oat_clamps(
@@ -33,12 +34,10 @@ impl OatCase {
             self.material.material,
             self.thickness,
         )
-        .map_err(|(e, err)| {
-            format!(
-                "{}: element {}: {err}",
-                mesh.source,
-                mesh.element_labels.get(e).copied().unwrap_or(e as i64)
-            )
+        .map_err(|(e, err)| BuildError::Element {
+            mesh: mesh.source.clone(),
+            element: mesh.element_labels.get(e).copied().unwrap_or(e as i64),
+            cause: err,
         })?;
         let (zones, mdz) = self.zones_and_mdz(&mesh);
         Ok(OatModel {
@@ -54,7 +53,7 @@ impl OatCase {
     /// The specimen's mesh, generated or read, with the largest deviation
     /// of the rovings from a triangle edge (generated meshes) and the names
     /// of the fixed and moving clamp sets.
-    fn specimen_mesh(&self) -> Result<(Mesh, Option<f64>, String, String), String> {
+    fn specimen_mesh(&self) -> Result<(Mesh, Option<f64>, String, String), BuildError> {
         Ok(match &self.mesh {
             MeshSource::Generated {
                 resolution,
@@ -77,7 +76,11 @@ impl OatCase {
                         } => "specimen",
                         _ => "mesh",
                     };
-                    format!("{}: [{table}] {e}", self.source)
+                    BuildError::Generator {
+                        file: self.source.clone(),
+                        table,
+                        cause: e,
+                    }
                 })?;
                 (
                     generated.mesh,
@@ -95,14 +98,17 @@ impl OatCase {
                     Some("inp") => crate::mesh::inp::read_inp(path),
                     Some("msh") => crate::mesh::msh::read_msh(path),
                     _ => {
-                        return Err(format!(
-                            "{}: mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
-                            self.source,
-                            path.display()
-                        ));
+                        return Err(BuildError::MeshFormat {
+                            file: self.source.clone(),
+                            path: path.clone(),
+                        });
                     }
                 }
-                .map_err(|e| format!("{}: mesh.file = \"{}\": {e}", self.source, path.display()))?;
+                .map_err(|e| BuildError::MeshFile {
+                    file: self.source.clone(),
+                    path: path.clone(),
+                    cause: e,
+                })?;
                 (
                     mesh,
                     None,
@@ -121,23 +127,29 @@ impl OatCase {
         mesh: &mut Mesh,
         fixed: &str,
         moving: &str,
-    ) -> Result<(Vec<usize>, Vec<usize>), String> {
-        let in_case = |e: &dyn std::fmt::Display| format!("{}: {e}", self.source);
+    ) -> Result<(Vec<usize>, Vec<usize>), BuildError> {
+        let in_case = |e| BuildError::Mesh {
+            file: self.source.clone(),
+            cause: e,
+        };
         if mesh.fibres.is_empty() {
             mesh.set_fibres_from_global(self.roving_direction())
-                .map_err(|e| {
-                    format!(
-                        "{}: specimen.bias_angle_deg = {}: {e}",
-                        self.source,
-                        crate::config::readable_number(self.bias_angle_deg)
-                    )
+                .map_err(|e| BuildError::Fibres {
+                    file: self.source.clone(),
+                    bias_angle_deg: self.bias_angle_deg,
+                    cause: e,
                 })?;
         }
-        mesh.check().map_err(|e| in_case(&e))?;
-        let clamp = |key: &str, name: &str| {
+        mesh.check().map_err(in_case)?;
+        let clamp = |key: &'static str, name: &str| {
             mesh.node_set(name)
                 .map(<[usize]>::to_vec)
-                .map_err(|e| format!("{}: mesh.{key} = \"{name}\": {e}", self.source))
+                .map_err(|e| BuildError::ClampSet {
+                    file: self.source.clone(),
+                    key,
+                    set: name.to_string(),
+                    cause: e,
+                })
         };
         let fixed_nodes = clamp("fixed_clamp_set", fixed)?;
         let moving_nodes = clamp("moving_clamp_set", moving)?;
@@ -146,20 +158,23 @@ impl OatCase {
             (&moving, &moving_nodes, "mesh.moving_clamp_set"),
         ] {
             if nodes.is_empty() {
-                return Err(format!(
-                    "{}: {key} = \"{set}\": the node set of {} is empty; expected the nodes of a clamped edge",
-                    self.source, mesh.source
-                ));
+                return Err(BuildError::EmptyClamp {
+                    file: self.source.clone(),
+                    key,
+                    set: set.to_string(),
+                    mesh: mesh.source.clone(),
+                });
             }
         }
         let in_fixed: std::collections::HashSet<usize> = fixed_nodes.iter().copied().collect();
         if let Some(&shared) = moving_nodes.iter().find(|n| in_fixed.contains(n)) {
-            return Err(format!(
-                "{}: mesh.fixed_clamp_set = \"{fixed}\" and mesh.moving_clamp_set = \"{moving}\": node {} of {} is in both sets; expected two clamps without a common node (one is fixed, the other moves)",
-                self.source,
-                mesh.node_label(shared),
-                mesh.source
-            ));
+            return Err(BuildError::SharedClampNode {
+                file: self.source.clone(),
+                fixed: fixed.to_string(),
+                moving: moving.to_string(),
+                node: mesh.node_label(shared),
+                mesh: mesh.source.clone(),
+            });
         }
         Ok((fixed_nodes, moving_nodes))
     }

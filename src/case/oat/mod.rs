@@ -3,9 +3,9 @@
 //! clamped; the edge `y = L` is fixed in `x` and `z` and pulled in `+y` to
 //! the final displacement. The test is in-plane: every `z` is fixed.
 //!
-//! The case is read table by table ([`tables`]: `[specimen]`, `[mesh]`,
+//! The case is read table by table (`tables.rs`: `[specimen]`, `[mesh]`,
 //! `[material]`, `[loading]`, `[output]`), with the `solver` key and the
-//! `[explicit]` table; [`build`] turns it into a model. Key-by-key
+//! `[explicit]` table; `build.rs` turns it into a model. Key-by-key
 //! documentation: `docs/cases.md`.
 
 use std::path::{Path, PathBuf};
