@@ -43,7 +43,7 @@ pub enum BuildError {
         ply: String,
         /// What is wrong with the mesh.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A ply's mesh file cannot be read.
     #[error("{file}: ply \"{ply}\": [ply.mesh] file = \"{}\": {cause}", .path.display())]
@@ -56,7 +56,7 @@ pub enum BuildError {
         path: PathBuf,
         /// Why it cannot be read.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A ply's mesh file is neither an Abaqus `.inp` nor a Gmsh `.msh`.
     #[error(
@@ -95,7 +95,7 @@ pub enum BuildError {
         ply: String,
         /// Why the node set cannot be used.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A ply's bending stiffnesses are invalid.
     #[error("{file}: ply \"{ply}\": bending: {cause}")]
@@ -117,7 +117,7 @@ pub enum BuildError {
         ply: String,
         /// What is wrong with the mesh (its topology or a hinge).
         #[source]
-        cause: BendingSetupError,
+        cause: Box<BendingSetupError>,
     },
     /// The node set of a `[[probe]]` is not in its ply's mesh.
     #[error("{file}:{line}: probe on ply \"{ply}\": {cause}")]
@@ -130,7 +130,7 @@ pub enum BuildError {
         ply: String,
         /// Why the node set cannot be used.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// The node set of a `[[load]]` is not in its ply's mesh.
     #[error("{file}:{line}: load on ply \"{ply}\": {cause}")]
@@ -143,7 +143,7 @@ pub enum BuildError {
         ply: String,
         /// Why the node set cannot be used.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A tool's surface cannot be built.
     #[error("{file}: tool \"{tool}\": {cause}")]
@@ -154,7 +154,7 @@ pub enum BuildError {
         tool: String,
         /// What is wrong with the surface.
         #[source]
-        cause: ToolSurfaceError,
+        cause: Box<ToolSurfaceError>,
     },
     /// The contact penalty of a node of a ply against a tool is not a
     /// positive number.
@@ -217,7 +217,7 @@ pub enum BuildError {
         table: &'static str,
         /// What is wrong with the parameters.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// An OAT's mesh file is neither an Abaqus `.inp` nor a Gmsh `.msh`.
     #[error(
@@ -239,7 +239,7 @@ pub enum BuildError {
         path: PathBuf,
         /// Why it cannot be read.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// An OAT's mesh cannot take fibres along the rovings.
     #[error(
@@ -253,7 +253,7 @@ pub enum BuildError {
         bias_angle_deg: f64,
         /// Why the fibres cannot be set.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// An OAT's mesh fails its checks.
     #[error("{file}: {cause}")]
@@ -262,7 +262,7 @@ pub enum BuildError {
         file: String,
         /// What is wrong with the mesh.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A clamp's node set of an OAT is not in its mesh; `key` is
     /// `fixed_clamp_set` or `moving_clamp_set`.
@@ -276,7 +276,7 @@ pub enum BuildError {
         set: String,
         /// Why the set cannot be used.
         #[source]
-        cause: MeshError,
+        cause: Box<MeshError>,
     },
     /// A clamp's node set of an OAT is empty; `key` is
     /// `mesh.fixed_clamp_set` or `mesh.moving_clamp_set`.

@@ -89,7 +89,7 @@ fn tool_surface(
     let context = |e: ToolSurfaceError| BuildError::Tool {
         file: case.source.clone(),
         tool: spec.name.clone(),
-        cause: e,
+        cause: e.into(),
     };
     let placement = Placement::new(spec.origin, spec.axis, None).map_err(|e| context(e.into()))?;
     let side = if spec.inside {
@@ -244,7 +244,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
     let context = |e: MeshError| BuildError::PlyMesh {
         file: case.source.clone(),
         ply: ply.name.clone(),
-        cause: e,
+        cause: e.into(),
     };
     let angle = ply.fibre_angle_deg.to_radians();
     let in_plane = Vector3::new(angle.cos(), angle.sin(), 0.0);
@@ -298,7 +298,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
                 file: case.source.clone(),
                 ply: ply.name.clone(),
                 path: path.clone(),
-                cause: e,
+                cause: e.into(),
             })?;
             if mesh.fibres.is_empty() {
                 mesh.set_fibres_from_global(in_plane).map_err(context)?;
@@ -498,7 +498,7 @@ impl FormingCase {
                     file: self.source.clone(),
                     line: b.line,
                     ply: ply.name.clone(),
-                    cause: e,
+                    cause: e.into(),
                 })?;
             let global: Vec<usize> = set.iter().map(|n| n + ply.node_offset).collect();
             for &n in &global {
@@ -557,7 +557,7 @@ impl FormingCase {
             .map_err(|e| BuildError::Bending {
                 file: self.source.clone(),
                 ply: spec.name.clone(),
-                cause: e,
+                cause: e.into(),
             })?;
             model.add(term);
         }
@@ -573,7 +573,7 @@ impl FormingCase {
                 file: self.source.clone(),
                 line: p.line,
                 ply: ply.name.clone(),
-                cause: e,
+                cause: e.into(),
             })?;
             probe_nodes.push(set.iter().map(|n| n + ply.node_offset).collect());
         }
@@ -616,7 +616,7 @@ impl FormingCase {
                 file: self.source.clone(),
                 line: l.line,
                 ply: ply.name.clone(),
-                cause: e,
+                cause: e.into(),
             })?;
             let share = l.force / set.len() as f64;
             let forces = set.iter().map(|n| (n + ply.node_offset, share)).collect();

@@ -79,7 +79,7 @@ impl OatCase {
                     BuildError::Generator {
                         file: self.source.clone(),
                         table,
-                        cause: e,
+                        cause: e.into(),
                     }
                 })?;
                 (
@@ -107,7 +107,7 @@ impl OatCase {
                 .map_err(|e| BuildError::MeshFile {
                     file: self.source.clone(),
                     path: path.clone(),
-                    cause: e,
+                    cause: e.into(),
                 })?;
                 (
                     mesh,
@@ -128,16 +128,16 @@ impl OatCase {
         fixed: &str,
         moving: &str,
     ) -> Result<(Vec<usize>, Vec<usize>), BuildError> {
-        let in_case = |e| BuildError::Mesh {
+        let in_case = |e: crate::mesh::MeshError| BuildError::Mesh {
             file: self.source.clone(),
-            cause: e,
+            cause: e.into(),
         };
         if mesh.fibres.is_empty() {
             mesh.set_fibres_from_global(self.roving_direction())
                 .map_err(|e| BuildError::Fibres {
                     file: self.source.clone(),
                     bias_angle_deg: self.bias_angle_deg,
-                    cause: e,
+                    cause: e.into(),
                 })?;
         }
         mesh.check().map_err(in_case)?;
@@ -148,7 +148,7 @@ impl OatCase {
                     file: self.source.clone(),
                     key,
                     set: name.to_string(),
-                    cause: e,
+                    cause: e.into(),
                 })
         };
         let fixed_nodes = clamp("fixed_clamp_set", fixed)?;
