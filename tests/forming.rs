@@ -239,7 +239,7 @@ fn case_error(text: &str) -> String {
     match FormingCase::load(&path) {
         Err(e) => e.to_string(),
         Ok(case) => match case.build() {
-            Err(e) => e,
+            Err(e) => e.to_string(),
             Ok(_) => panic!("the case should be rejected:\n{text}"),
         },
     }
@@ -392,7 +392,7 @@ fn bad_forming_cases_name_key_value_and_expectation() {
     let path = dir.path().join("case.toml");
     fs::write(&path, &text).unwrap();
     let msg = match FormingCase::load(&path).unwrap().build() {
-        Err(e) => e,
+        Err(e) => e.to_string(),
         Ok(_) => panic!("an open STL with closed = true should be rejected"),
     };
     assert_mentions(&msg, &["case.toml", "tool \"table\"", "sheet.stl"]);

@@ -221,7 +221,7 @@ fn check_case(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
                 let finite = model.nodes.iter().all(|x| x.iter().all(|c| c.is_finite()));
                 (!finite).then(|| "the built model has non-finite nodes".to_string())
             }
-            Err(msg) => build_error(msg),
+            Err(msg) => build_error(msg.to_string()),
         }
     } else {
         let case = match OatCase::from_toml_str(&text, &name, &base) {
@@ -240,7 +240,7 @@ fn check_case(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
                     .all(|x| x.iter().all(|c| c.is_finite()));
                 (!finite).then(|| "the built mesh has non-finite nodes".to_string())
             }
-            Err(msg) => build_error(msg),
+            Err(msg) => build_error(msg.to_string()),
         }
     }
 }
@@ -681,7 +681,7 @@ fn generator_errors_name_case_file_and_key() {
     let bad = oat.replacen("element_size = 2.7", "element_size = 0.01", 1);
     assert_ne!(bad, oat, "the OAT case's element size changed");
     let case = OatCase::from_toml_str(&bad, "x.toml", &base).unwrap();
-    let e = case.build().unwrap_err();
+    let e = case.build().unwrap_err().to_string();
     assert!(
         e.starts_with("x.toml: [mesh] element_size = 0.01: expected"),
         "{e}"
@@ -689,7 +689,7 @@ fn generator_errors_name_case_file_and_key() {
     let bad = oat.replacen("width = 100.0", "width = 1e300", 1);
     assert_ne!(bad, oat);
     let e = match OatCase::from_toml_str(&bad, "x.toml", &base) {
-        Ok(case) => case.build().unwrap_err(),
+        Ok(case) => case.build().unwrap_err().to_string(),
         Err(e) => e.to_string(),
     };
     assert!(e.starts_with("x.toml:"), "{e}");
@@ -698,7 +698,7 @@ fn generator_errors_name_case_file_and_key() {
         .replacen("bias_angle_deg = 45.0", "bias_angle_deg = 0.0", 1)
         .replacen("[mesh]", "[mesh]\npattern = \"both-diagonals\"", 1);
     let case = OatCase::from_toml_str(&bad, "x.toml", &base).unwrap();
-    let e = case.build().unwrap_err();
+    let e = case.build().unwrap_err().to_string();
     assert!(
         e.starts_with("x.toml: [mesh] pattern = \"both-diagonals\": expected"),
         "{e}"
@@ -712,7 +712,7 @@ fn mesh_file_errors_name_case_file_and_key() {
     let base = repo().join("cases");
     let bad = OAT_ON_MESH_FILE.replacen("\"top\"", "\"nosuchset\"", 1);
     let case = OatCase::from_toml_str(&bad, "x.toml", &base).unwrap();
-    let e = case.build().unwrap_err();
+    let e = case.build().unwrap_err().to_string();
     assert!(
         e.starts_with("x.toml: mesh.moving_clamp_set = \"nosuchset\": "),
         "{e}"
@@ -723,7 +723,7 @@ fn mesh_file_errors_name_case_file_and_key() {
     let text =
         OAT_ON_MESH_FILE.replacen("meshes/square.msh", &file.path().display().to_string(), 1);
     let case = OatCase::from_toml_str(&text, "x.toml", &base).unwrap();
-    let e = case.build().unwrap_err();
+    let e = case.build().unwrap_err().to_string();
     assert!(e.starts_with("x.toml: mesh.file = \""), "{e}");
     assert!(
         e.contains(":5: found `4294967296 nodes in the header`"),
@@ -884,7 +884,7 @@ fn messages_write_extreme_numbers_short() {
     ] {
         let e = if is_forming(bad) {
             match FormingCase::from_toml_str(bad, "c.toml", &base.join("verification")) {
-                Ok(case) => case.build().map(|_| ()).unwrap_err(),
+                Ok(case) => case.build().map(|_| ()).unwrap_err().to_string(),
                 Err(e) => e.to_string(),
             }
         } else {

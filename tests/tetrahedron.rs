@@ -107,7 +107,7 @@ fn case_error(text: &str) -> String {
     match FormingCase::load(&path) {
         Err(e) => e.to_string(),
         Ok(case) => match case.build() {
-            Err(e) => e,
+            Err(e) => e.to_string(),
             Ok(_) => panic!("the case should be rejected:\n{text}"),
         },
     }

@@ -140,39 +140,7 @@ impl ExplicitSettings {
         let raw = raw.unwrap_or(&empty);
         let positive =
             |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
-        let clamp_speed = match (&raw.clamp_speed, &raw.duration) {
-            (Some(_), Some(d)) => {
-                return Err(check.invalid(
-                    check.line_of(d),
-                    "explicit.duration",
-                    crate::config::readable_number(*d.get_ref()),
-                    "either explicit.clamp_speed or explicit.duration, not both",
-                ));
-            }
-            (Some(v), None) => positive(v, "explicit.clamp_speed", "a speed > 0 mm/s")?,
-            (None, Some(d)) => displacement / positive(d, "explicit.duration", "a duration > 0 s")?,
-            (None, None) => DEFAULT_CLAMP_SPEED,
-        };
-        // Each value may be finite and the quotient not (1e-308 s for an
-        // 80 mm stroke, 5e-324 mm/s, or a stroke of 5e-324 mm).
-        let duration = displacement / clamp_speed;
-        if !(clamp_speed.is_finite() && duration.is_finite() && duration > 0.0) {
-            let (key, line, value) = match (&raw.duration, &raw.clamp_speed) {
-                (Some(d), _) => ("explicit.duration", check.line_of(d), *d.get_ref()),
-                (None, Some(v)) => ("explicit.clamp_speed", check.line_of(v), *v.get_ref()),
-                (None, None) => ("explicit.clamp_speed", 0, clamp_speed),
-            };
-            return Err(check.invalid(
-                line,
-                key,
-                crate::config::readable_number(value),
-                &format!(
-                    "a value for which the stroke of {} mm takes a finite, positive time \
-                     (duration = stroke / clamp_speed)",
-                    crate::config::readable_number(displacement)
-                ),
-            ));
-        }
+        let clamp_speed = clamp_speed(raw, check, displacement)?;
         let amplitude = match &raw.amplitude {
             None => Amplitude::SmoothStep,
             Some(a) => check.choice(
@@ -185,36 +153,7 @@ impl ExplicitSettings {
                 ],
             )?,
         };
-        let time_step = match (&raw.time_step, &raw.safety_factor) {
-            (Some(dt), Some(_)) => {
-                return Err(check.invalid(
-                    check.line_of(dt),
-                    "explicit.time_step",
-                    crate::config::readable_number(*dt.get_ref()),
-                    "either explicit.time_step (fixed) or explicit.safety_factor (stable), not both",
-                ));
-            }
-            (Some(dt), None) => TimeStepControl::Fixed {
-                time_step: positive(dt, "explicit.time_step", "a time step > 0 s")?,
-            },
-            (None, safety) => TimeStepControl::Stable {
-                safety_factor: match safety {
-                    None => 0.9,
-                    Some(s) => check.range(
-                        s,
-                        "explicit.safety_factor",
-                        |x| x > 0.0 && x <= 1.0,
-                        "a factor in (0, 1]",
-                    )?,
-                },
-                update_interval: match &raw.time_step_update_interval {
-                    None => 100,
-                    Some(n) => {
-                        check.count(n, "explicit.time_step_update_interval", 1..=1_000_000)?
-                    }
-                },
-            },
-        };
+        let time_step = time_step(raw, check)?;
         let mass_scaling_time_step = raw
             .mass_scaling_time_step
             .as_ref()
@@ -312,4 +251,176 @@ impl ExplicitSettings {
             cancel: crate::solver::CancelToken::default(),
         }
     }
+}
+
+/// `explicit.clamp_speed` or `explicit.duration` (not both) as the mean
+/// clamp speed [mm/s] over a stroke of `displacement` [mm], checked to give
+/// a finite, positive duration.
+fn clamp_speed(
+    raw: &ExplicitRaw,
+    check: &TomlChecker,
+    displacement: f64,
+) -> Result<f64, ConfigError> {
+    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+    let clamp_speed = match (&raw.clamp_speed, &raw.duration) {
+        (Some(_), Some(d)) => {
+            return Err(check.invalid(
+                check.line_of(d),
+                "explicit.duration",
+                crate::config::readable_number(*d.get_ref()),
+                "either explicit.clamp_speed or explicit.duration, not both",
+            ));
+        }
+        (Some(v), None) => positive(v, "explicit.clamp_speed", "a speed > 0 mm/s")?,
+        (None, Some(d)) => displacement / positive(d, "explicit.duration", "a duration > 0 s")?,
+        (None, None) => DEFAULT_CLAMP_SPEED,
+    };
+    // Each value may be finite and the quotient not (1e-308 s for an
+    // 80 mm stroke, 5e-324 mm/s, or a stroke of 5e-324 mm).
+    let duration = displacement / clamp_speed;
+    if !(clamp_speed.is_finite() && duration.is_finite() && duration > 0.0) {
+        let (key, line, value) = match (&raw.duration, &raw.clamp_speed) {
+            (Some(d), _) => ("explicit.duration", check.line_of(d), *d.get_ref()),
+            (None, Some(v)) => ("explicit.clamp_speed", check.line_of(v), *v.get_ref()),
+            (None, None) => ("explicit.clamp_speed", 0, clamp_speed),
+        };
+        return Err(check.invalid(
+            line,
+            key,
+            crate::config::readable_number(value),
+            &format!(
+                "a value for which the stroke of {} mm takes a finite, positive time \
+                 (duration = stroke / clamp_speed)",
+                crate::config::readable_number(displacement)
+            ),
+        ));
+    }
+    Ok(clamp_speed)
+}
+
+/// `explicit.time_step` (fixed) or `explicit.safety_factor` and
+/// `explicit.time_step_update_interval` (stable), not both.
+fn time_step(raw: &ExplicitRaw, check: &TomlChecker) -> Result<TimeStepControl, ConfigError> {
+    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+    Ok(match (&raw.time_step, &raw.safety_factor) {
+        (Some(dt), Some(_)) => {
+            return Err(check.invalid(
+                check.line_of(dt),
+                "explicit.time_step",
+                crate::config::readable_number(*dt.get_ref()),
+                "either explicit.time_step (fixed) or explicit.safety_factor (stable), not both",
+            ));
+        }
+        (Some(dt), None) => TimeStepControl::Fixed {
+            time_step: positive(dt, "explicit.time_step", "a time step > 0 s")?,
+        },
+        (None, safety) => TimeStepControl::Stable {
+            safety_factor: match safety {
+                None => 0.9,
+                Some(s) => check.range(
+                    s,
+                    "explicit.safety_factor",
+                    |x| x > 0.0 && x <= 1.0,
+                    "a factor in (0, 1]",
+                )?,
+            },
+            update_interval: match &raw.time_step_update_interval {
+                None => 100,
+                Some(n) => check.count(n, "explicit.time_step_update_interval", 1..=1_000_000)?,
+            },
+        },
+    })
+}
+
+/// The top-level `solver` key: a method name or a `[solver]` table of
+/// Newton knobs (quasi-static).
+pub(super) fn solver_choice(
+    choice: Option<Spanned<SolverChoice>>,
+    check: &TomlChecker,
+) -> Result<(SolverKind, NewtonParameters), ConfigError> {
+    Ok(match choice {
+        None => (SolverKind::QuasiStatic, NewtonParameters::default()),
+        Some(choice) => {
+            let line = check.line_of(&choice);
+            match choice.into_inner() {
+                SolverChoice::Newton(p) => (SolverKind::QuasiStatic, p),
+                SolverChoice::Method(m) => match m.as_str() {
+                    "quasi-static" => (SolverKind::QuasiStatic, NewtonParameters::default()),
+                    "explicit" => (SolverKind::Explicit, NewtonParameters::default()),
+                    other => {
+                        return Err(check.invalid(
+                            line,
+                            "solver",
+                            format!("\"{other}\""),
+                            "\"quasi-static\", \"explicit\" or a [solver] table of Newton knobs",
+                        ));
+                    }
+                },
+            }
+        }
+    })
+}
+
+/// Checks the Newton knobs of a `[solver]` table.
+pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {
+    let bad = |key: &str, value: String, expected: &str| ConfigError::Invalid {
+        source: source.to_string(),
+        line: 0,
+        key: format!("solver.{key}"),
+        value,
+        expected: expected.to_string(),
+    };
+    let pos = |key: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(bad(key, crate::config::readable_number(v), "a number > 0"))
+        }
+    };
+    pos("initial_increment", p.initial_increment)?;
+    pos("max_increment", p.max_increment)?;
+    pos("min_increment", p.min_increment)?;
+    pos("residual_tolerance", p.residual_tolerance)?;
+    pos("energy_tolerance", p.energy_tolerance)?;
+    pos("force_floor", p.force_floor)?;
+    if p.min_increment > p.max_increment {
+        return Err(bad(
+            "min_increment",
+            crate::config::readable_number(p.min_increment),
+            "at most max_increment",
+        ));
+    }
+    if !(p.growth >= 1.0 && p.growth.is_finite()) {
+        return Err(bad(
+            "growth",
+            crate::config::readable_number(p.growth),
+            "a factor ≥ 1",
+        ));
+    }
+    if !(p.cutback > 0.0 && p.cutback < 1.0) {
+        return Err(bad(
+            "cutback",
+            crate::config::readable_number(p.cutback),
+            "a factor in (0, 1)",
+        ));
+    }
+    if p.max_iterations == 0 {
+        return Err(bad("max_iterations", "0".into(), "at least 1"));
+    }
+    pos("stabilisation_fraction", p.stabilisation_fraction)?;
+    if let Some(t) = p.max_wall_seconds {
+        pos("max_wall_seconds", t)?;
+    }
+    if let Some(t) = p.inertia_duration {
+        pos("inertia_duration", t)?;
+    }
+    pos("stabilisation_limit", p.stabilisation_limit)?;
+    if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
+        return Err(bad(
+            "stabilisation_factor",
+            crate::config::readable_number(p.stabilisation_factor),
+            "a number ≥ 0",
+        ));
+    }
+    Ok(())
 }

@@ -2,6 +2,7 @@
 //! off-axis tension test is; the solver sees a membrane and Dirichlet
 //! conditions. Field-by-field documentation: `docs/cases.md`.
 
+pub mod error;
 pub mod explicit;
 pub mod forming;
 pub mod forming_model;
@@ -9,6 +10,7 @@ pub mod measure;
 pub mod oat;
 pub mod scenario;
 
+pub use error::BuildError;
 pub use explicit::{ExplicitSettings, SolverKind};
 pub use oat::{OatCase, OatModel, Zone};
 pub use scenario::Case;

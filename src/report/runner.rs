@@ -157,7 +157,7 @@ pub enum RunError {
     /// The case could not be built into a model (a mesh, a node set, a
     /// tool), naming the case file and the item.
     #[error("{0}")]
-    Build(String),
+    Build(#[from] crate::case::BuildError),
     /// The blank's readout could not be set up (a ply without a boundary,
     /// a zone without an element), naming the case file and the item.
     #[error("{0}")]

@@ -1,0 +1,49 @@
+//! The `[output]` table of a forming case: how many VTU states over the
+//! programme, how many history rows of an explicit run, and which side the
+//! PNG maps look at the plies from. Key-by-key documentation:
+//! `docs/cases.md`, "Forming cases".
+
+use super::raw::OutputRaw;
+use super::{DEFAULT_HISTORY_ROWS, DEFAULT_STATES, MapView};
+use crate::config::{ConfigError, TomlChecker};
+
+/// The validated `[output]` table.
+pub(super) struct Outputs {
+    /// How the PNG maps look at the plies (`camera`).
+    pub(super) camera: MapView,
+    /// Number of VTU states besides `λ = 0` (`states`).
+    pub(super) states: usize,
+    /// History rows of an explicit run (`history`).
+    pub(super) history_rows: usize,
+}
+
+/// The `[output]` table's camera, states and history rows, each with its
+/// default when left out.
+pub(super) fn output(check: &TomlChecker, raw: Option<&OutputRaw>) -> Result<Outputs, ConfigError> {
+    let camera = match raw.and_then(|o| o.camera.as_ref()) {
+        None => MapView::Below,
+        Some(c) => check.choice(
+            c,
+            "output.camera",
+            &[("below", MapView::Below), ("above", MapView::Above)],
+        )?,
+    };
+    let (states, history_rows) = match raw {
+        None => (DEFAULT_STATES, DEFAULT_HISTORY_ROWS),
+        Some(o) => (
+            match &o.states {
+                None => DEFAULT_STATES,
+                Some(n) => check.count(n, "output.states", 1..=10_000)?,
+            },
+            match &o.history {
+                None => DEFAULT_HISTORY_ROWS,
+                Some(n) => check.count(n, "output.history", 1..=1_000_000)?,
+            },
+        ),
+    };
+    Ok(Outputs {
+        camera,
+        states,
+        history_rows,
+    })
+}

@@ -1,0 +1,435 @@
+//! The `[[ply]]` tables of a forming case: each ply's name, parameter set
+//! (`params`), thickness, areal mass, fibre angle, bending stiffnesses
+//! (`bending`) and mesh (`[ply.mesh]`: a generated rectangle, disk or
+//! wrapped strip, or a mesh file), and how the other tables name a ply.
+//! Key-by-key documentation: `docs/cases.md`, "Forming cases".
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use toml::Spanned;
+
+use super::raw::{BendingRaw, PlyMeshRaw, PlyRaw};
+use super::{shown_list, vector3};
+use crate::case::explicit::{DEFAULT_AREAL_MASS, KG_PER_M2_IN_T_PER_MM2};
+use crate::config::{ConfigError, TomlChecker};
+use crate::material::MaterialSpec;
+
+/// Where a ply's mesh comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlyMesh {
+    /// A flat rectangle `size` in x and y centred at `centre`, meshed so
+    /// that every triangle has an edge along the rovings.
+    Rectangle {
+        /// Extents along x and y \[mm\].
+        size: [f64; 2],
+        /// Centre \[mm\].
+        centre: Vector3<f64>,
+        /// Element size or cell counts.
+        resolution: crate::mesh::generate::GridResolution,
+        /// How the cells are cut into triangles.
+        pattern: crate::mesh::generate::GridPattern,
+    },
+    /// A flat circular membrane of radius `radius` centred at `centre`.
+    Disk {
+        /// Radius \[mm\].
+        radius: f64,
+        /// Centre \[mm\].
+        centre: Vector3<f64>,
+        /// Element size \[mm\].
+        element_size: f64,
+    },
+    /// A strip pre-wrapped over a cylinder along y through `centre`.
+    WrappedStrip {
+        /// Radius of the strip's mid-surface arc \[mm\].
+        radius: f64,
+        /// Wrap angle \[deg\].
+        wrap_angle_deg: f64,
+        /// Length of each straight tail \[mm\].
+        tail_length: f64,
+        /// Width of the strip \[mm\].
+        width: f64,
+        /// Element size \[mm\].
+        element_size: f64,
+        /// Centre of the cylinder's axis \[mm\].
+        centre: Vector3<f64>,
+    },
+    /// An Abaqus `.inp` or Gmsh `.msh` file.
+    File {
+        /// Path (relative paths from the case file's folder).
+        path: PathBuf,
+    },
+}
+
+/// One ply.
+#[derive(Debug, Clone)]
+pub struct PlySpec {
+    /// Name (messages, outputs, node-set references).
+    pub name: String,
+    /// The mesh.
+    pub mesh: PlyMesh,
+    /// The law.
+    pub material: MaterialSpec,
+    /// Thickness \[mm\].
+    pub thickness: f64,
+    /// Mass density [t/mm³] (`None`: a parameter file without areal mass,
+    /// quasi-static without gravity only).
+    pub density: Option<f64>,
+    /// Roving angle from the global x axis in the blank's plane \[deg\]
+    /// (rovings `(cos α, sin α, 0)`), for generated rectangles and mesh
+    /// files; a wrapped strip has its rovings along its length.
+    pub fibre_angle_deg: f64,
+    /// Bending stiffnesses `(B11, B22, B66)` [N·mm], `None` for a membrane
+    /// without bending.
+    pub bending: Option<[f64; 3]>,
+}
+
+/// The paper's bending stiffnesses `(B11, B22)` [N·mm] (Section 3) and the
+/// default twist stiffness `B66 = B22` (not in the paper; `docs/theory.md`).
+pub const PAPER_BENDING: [f64; 3] = [4.06, 0.018, 0.018];
+
+/// Validates the `[[ply]]` tables in order: at least one ply, each with a
+/// name no other ply has (`ply`, or `ply1`, `ply2`, … when unnamed).
+pub(super) fn plies(
+    check: &TomlChecker,
+    raw: &[PlyRaw],
+    base_dir: &Path,
+) -> Result<Vec<PlySpec>, ConfigError> {
+    if raw.is_empty() {
+        return Err(check.missing("[[ply]]", "at least one ply"));
+    }
+    let mut plies = Vec::new();
+    for (i, p) in raw.iter().enumerate() {
+        let key = |k: &str| format!("ply[{i}].{k}");
+        let name = p.name.clone().unwrap_or_else(|| {
+            if raw.len() == 1 {
+                "ply".to_string()
+            } else {
+                format!("ply{}", i + 1)
+            }
+        });
+        if plies.iter().any(|q: &PlySpec| q.name == name) {
+            return Err(check.invalid(
+                0,
+                &key("name"),
+                format!("\"{name}\""),
+                "a name no other ply has",
+            ));
+        }
+        plies.push(ply_spec(check, p, i, name, base_dir)?);
+    }
+    Ok(plies)
+}
+
+/// One ply's table: its law, thickness, density, fibre angle, bending and
+/// mesh, checked in that order.
+fn ply_spec(
+    check: &TomlChecker,
+    p: &PlyRaw,
+    i: usize,
+    name: String,
+    base_dir: &Path,
+) -> Result<PlySpec, ConfigError> {
+    let key = |k: &str| format!("ply[{i}].{k}");
+    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+    let (material, named_set) = ply_material(check, &p.params, &key("params"), base_dir)?;
+    let thickness = match &p.thickness {
+        None => crate::case::oat::DEFAULT_THICKNESS,
+        Some(t) => positive(t, &key("thickness"), "a thickness > 0 mm")?,
+    };
+    let density = match &p.areal_mass {
+        Some(a) => Some(
+            positive(a, &key("areal_mass"), "an areal mass > 0 kg/m²")? * KG_PER_M2_IN_T_PER_MM2
+                / thickness,
+        ),
+        None if named_set => Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness),
+        None => None,
+    };
+    if let (Some(rho), Some(t)) = (density, &p.thickness)
+        && !rho.is_finite()
+    {
+        return Err(check.invalid(
+            check.line_of(t),
+            &key("thickness"),
+            crate::config::readable_number(thickness),
+            "a thickness for which the density (areal mass / thickness) is finite",
+        ));
+    }
+    let fibre_angle_deg = match &p.fibre_angle_deg {
+        None => 0.0,
+        Some(a) => check.range(
+            a,
+            &key("fibre_angle_deg"),
+            |x| (-360.0..=360.0).contains(&x),
+            "an angle in [-360, 360] degrees",
+        )?,
+    };
+    let bending = bending(check, &p.bending, i)?;
+    let mesh = ply_mesh(check, &p.mesh, i, base_dir)?;
+    Ok(PlySpec {
+        name,
+        mesh,
+        material,
+        thickness,
+        density,
+        fibre_angle_deg,
+        bending,
+    })
+}
+
+/// A ply's law: the default set, a named set, or a parameter file relative
+/// to `base_dir` (`key` = "ply[i].params"); `true` for a named set (which
+/// carries the default areal mass).
+fn ply_material(
+    check: &TomlChecker,
+    params: &Option<String>,
+    key: &str,
+    base_dir: &Path,
+) -> Result<(MaterialSpec, bool), ConfigError> {
+    let source = check.source;
+    Ok(match params {
+        None => (MaterialSpec::default_set(), true),
+        Some(name) if MaterialSpec::named_text(name).is_some() => (MaterialSpec::load(name)?, true),
+        Some(file) => (
+            MaterialSpec::load(&base_dir.join(file).display().to_string()).map_err(
+                |e| match e {
+                    ConfigError::NotFound { requested, reason } => ConfigError::NotFound {
+                        requested: format!("{source}: {key} = \"{file}\" ({requested})"),
+                        reason,
+                    },
+                    other => other,
+                },
+            )?,
+            false,
+        ),
+    })
+}
+
+/// A ply's bending stiffnesses `(B11, B22, B66)` [N·mm] from its `bending`
+/// key: the paper's by default, `None` for `bending = false`, a table's
+/// values (each defaulting to the paper's).
+fn bending(
+    check: &TomlChecker,
+    b: &Option<BendingRaw>,
+    i: usize,
+) -> Result<Option<[f64; 3]>, ConfigError> {
+    let key = |k: &str| format!("ply[{i}].{k}");
+    Ok(match b {
+        None => Some(PAPER_BENDING),
+        Some(b) => match b {
+            BendingRaw::Switch(false) => None,
+            BendingRaw::Switch(true) => Some(PAPER_BENDING),
+            BendingRaw::Table(t) => {
+                let value = |v: &Option<f64>, k: &str, default: f64| match v {
+                    None => Ok(default),
+                    Some(x) if x.is_finite() && *x >= 0.0 => Ok(*x),
+                    Some(x) => Err(check.invalid(
+                        0,
+                        &key(&format!("bending.{k}")),
+                        crate::config::readable_number(*x),
+                        "a bending stiffness ≥ 0 N·mm",
+                    )),
+                };
+                Some([
+                    value(&t.b11, "b11", PAPER_BENDING[0])?,
+                    value(&t.b22, "b22", PAPER_BENDING[1])?,
+                    value(&t.b66, "b66", PAPER_BENDING[2])?,
+                ])
+            }
+        },
+    })
+}
+
+/// The index of the ply a table names (`key` its `ply` key): the only ply
+/// when the name is left out, an error naming the plies when it is unknown.
+pub(super) fn ply_index(
+    check: &TomlChecker,
+    plies: &[PlySpec],
+    name: &Option<String>,
+    key: &str,
+) -> Result<usize, ConfigError> {
+    match name {
+        None if plies.len() == 1 => Ok(0),
+        None => Err(check.missing(key, "the ply's name (the case has several plies)")),
+        Some(n) => plies.iter().position(|p| &p.name == n).ok_or_else(|| {
+            check.invalid(
+                0,
+                key,
+                format!("\"{n}\""),
+                &format!(
+                    "one of the plies: {}",
+                    plies
+                        .iter()
+                        .map(|p| format!("\"{}\"", p.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        }),
+    }
+}
+
+fn ply_mesh(
+    check: &TomlChecker,
+    m: &PlyMeshRaw,
+    i: usize,
+    base_dir: &Path,
+) -> Result<PlyMesh, ConfigError> {
+    let key = |k: &str| format!("ply[{i}].mesh.{k}");
+    let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
+        None => Err(check.missing(&key(k), what)),
+        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+    };
+    let centre = match &m.centre {
+        None => Vector3::zeros(),
+        Some(c) => vector3(check, c, &key("centre"), false)?,
+    };
+    if let Some(file) = &m.file {
+        if m.shape.is_some() {
+            return Err(check.invalid(
+                check.line_of(file),
+                &key("shape"),
+                "(given)".into(),
+                "no shape with a mesh file",
+            ));
+        }
+        return Ok(PlyMesh::File {
+            path: base_dir.join(file.get_ref()),
+        });
+    }
+    let Some(shape) = &m.shape else {
+        return Err(check.missing(
+            &key("shape"),
+            "\"rectangle\", \"disk\" or \"wrapped-strip\" (or a mesh file)",
+        ));
+    };
+    #[derive(Clone, Copy)]
+    enum Kind {
+        Rectangle,
+        Disk,
+        Strip,
+    }
+    let kind = check.choice(
+        shape,
+        &key("shape"),
+        &[
+            ("rectangle", Kind::Rectangle),
+            ("disk", Kind::Disk),
+            ("wrapped-strip", Kind::Strip),
+        ],
+    )?;
+    Ok(match kind {
+        Kind::Rectangle => rectangle(check, m, i, centre)?,
+        Kind::Disk => PlyMesh::Disk {
+            radius: positive(&m.radius, "radius", "a radius > 0 mm")?,
+            centre,
+            element_size: positive(&m.element_size, "element_size", "a length > 0 mm")?,
+        },
+        Kind::Strip => PlyMesh::WrappedStrip {
+            radius: positive(
+                &m.radius,
+                "radius",
+                "the radius of the strip's mid-surface > 0 mm",
+            )?,
+            wrap_angle_deg: match &m.wrap_angle_deg {
+                None => {
+                    return Err(
+                        check.missing(&key("wrap_angle_deg"), "the wrap angle in (0, 360) degrees")
+                    );
+                }
+                Some(a) => check.range(
+                    a,
+                    &key("wrap_angle_deg"),
+                    |x| x > 0.0 && x < 360.0,
+                    "an angle in (0, 360) degrees",
+                )?,
+            },
+            tail_length: match &m.tail_length {
+                None => 0.0,
+                Some(t) => check.range(t, &key("tail_length"), |x| x >= 0.0, "a length ≥ 0 mm")?,
+            },
+            width: positive(&m.width, "width", "a width > 0 mm")?,
+            element_size: positive(&m.element_size, "element_size", "a length > 0 mm")?,
+            centre,
+        },
+    })
+}
+
+/// A generated rectangle's `[ply.mesh]` keys: its size, the element size
+/// or cell counts, and the cutting pattern.
+fn rectangle(
+    check: &TomlChecker,
+    m: &PlyMeshRaw,
+    i: usize,
+    centre: Vector3<f64>,
+) -> Result<PlyMesh, ConfigError> {
+    let key = |k: &str| format!("ply[{i}].mesh.{k}");
+    let size = match &m.size {
+        None => return Err(check.missing(&key("size"), "the blank's extents [x, y] in mm")),
+        Some(s) => {
+            let v = s.get_ref();
+            if v.len() != 2 || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                return Err(check.invalid(
+                    check.line_of(s),
+                    &key("size"),
+                    shown_list(v),
+                    "two lengths > 0 mm [x, y]",
+                ));
+            }
+            [v[0], v[1]]
+        }
+    };
+    let resolution = match (&m.element_size, &m.cells) {
+        (Some(h), None) => crate::mesh::generate::GridResolution::ElementSize(check.range(
+            h,
+            &key("element_size"),
+            |x| x > 0.0,
+            "a length > 0 mm",
+        )?),
+        (None, Some(c)) => {
+            let v = c.get_ref();
+            if v.len() != 2 || v.iter().any(|n| !(1..=100_000).contains(n)) {
+                return Err(check.invalid(
+                    check.line_of(c),
+                    &key("cells"),
+                    format!("{v:?}"),
+                    "two counts in 1..=100000 [nx, ny]",
+                ));
+            }
+            crate::mesh::generate::GridResolution::Counts {
+                nx: v[0] as usize,
+                ny: v[1] as usize,
+            }
+        }
+        _ => {
+            return Err(check.missing(
+                &key("element_size"),
+                "exactly one of element_size and cells",
+            ));
+        }
+    };
+    let pattern = match &m.pattern {
+        None => crate::mesh::generate::GridPattern::RovingDiagonal,
+        Some(p) => check.choice(
+            p,
+            &key("pattern"),
+            &[
+                (
+                    "roving-diagonal",
+                    crate::mesh::generate::GridPattern::RovingDiagonal,
+                ),
+                (
+                    "both-diagonals",
+                    crate::mesh::generate::GridPattern::BothDiagonals,
+                ),
+                ("mirrored", crate::mesh::generate::GridPattern::Mirrored),
+            ],
+        )?,
+    };
+    Ok(PlyMesh::Rectangle {
+        size,
+        centre,
+        resolution,
+        pattern,
+    })
+}
