@@ -414,7 +414,10 @@ fn material_curves_refuse_an_overflowing_set() {
     let spec = overflowing_udncf();
     let out = dir.path().join("curves");
     let err = write_curves(&spec, &out).unwrap_err();
-    assert_mentions(&err, &["fabric.toml", "[w6]", "nothing written"]);
+    assert_mentions(
+        &err.to_string(),
+        &["fabric.toml", "[w6]", "nothing written"],
+    );
     assert!(!out.exists());
 }
 

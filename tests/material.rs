@@ -841,6 +841,7 @@ fn material_curves_writes_csv_and_png() {
     assert_eq!(&png[1..4], b"PNG");
     let svk = MaterialSpec::from_toml_str(SVK, "svk.toml").unwrap();
     let err = material_curves::write_curves(&svk, dir.path()).unwrap_err();
+    let err = err.to_string();
     assert!(err.contains("svk.toml") && err.contains("ud-ncf"));
 }
 

@@ -57,11 +57,67 @@ fn describe(term: &GeneralizedTerm) -> String {
     s
 }
 
+/// Why the curves of a parameter set cannot be drawn or written.
+#[derive(Debug, thiserror::Error)]
+pub enum CurvesError {
+    /// The set is not a UD-NCF law.
+    #[error("{source_file}: material curves needs a UD-NCF parameter set (law = \"ud-ncf\")")]
+    NotUdNcf {
+        /// The parameter file or set.
+        source_file: String,
+    },
+    /// A term's stress, modulus or energy overflows in the plotted range.
+    #[error(
+        "{source_file}: [{term}]: the {quantity} is {value} at {x_name} = {x}: the parameters overflow the law within the plotted range {range:?}; expected moduli and stresses that stay finite (nothing written)"
+    )]
+    TermOverflow {
+        /// The parameter file or set.
+        source_file: String,
+        /// The term (`w6`, `w8`, `w11`).
+        term: &'static str,
+        /// The quantity (stress, modulus, energy).
+        quantity: &'static str,
+        /// Its value.
+        value: f64,
+        /// The term's argument.
+        x_name: &'static str,
+        /// Where.
+        x: f64,
+        /// The plotted range.
+        range: (f64, f64),
+    },
+    /// The coupling overflows in the plotted range.
+    #[error(
+        "{source_file}: [coupling]: k11 = {k}, dk11/dI11 = {dk} at I11 = {i11}: expected finite values (nothing written)"
+    )]
+    CouplingOverflow {
+        /// The parameter file or set.
+        source_file: String,
+        /// `k11`.
+        k: f64,
+        /// `dk11/dI11`.
+        dk: f64,
+        /// Where.
+        i11: f64,
+    },
+    /// A file or the folder could not be written.
+    #[error("{path}: {error}")]
+    Write {
+        /// The path.
+        path: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// A picture could not be drawn or written.
+    #[error("{0}")]
+    Plot(#[from] crate::post::plot::PlotError),
+}
+
 /// Refuses a parameter set whose stress functions, moduli, energies or
 /// coupling are not finite somewhere in the plotted ranges (huge moduli
 /// overflow): the message names the set, the term, the quantity and `x`,
 /// and nothing is written.
-fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
+fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), CurvesError> {
     let terms = [
         ("w6", "x = |I6|", &law.w6, SHEAR_RANGE),
         ("w8", "x = I8 - 1", &law.w8, STITCHING_RANGE),
@@ -71,10 +127,15 @@ fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
         for row in term_rows(term, range) {
             for (value, quantity) in row[1..].iter().zip(["stress f", "modulus df", "energy W"]) {
                 if !value.is_finite() {
-                    return Err(format!(
-                        "{}: [{name}]: the {quantity} is {value} at {x_name} = {}: the parameters overflow the law within the plotted range {range:?}; expected moduli and stresses that stay finite (nothing written)",
-                        spec.source, row[0]
-                    ));
+                    return Err(CurvesError::TermOverflow {
+                        source_file: spec.source.clone(),
+                        term: name,
+                        quantity,
+                        value: *value,
+                        x_name,
+                        x: row[0],
+                        range,
+                    });
                 }
             }
         }
@@ -82,10 +143,12 @@ fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
     for i11 in samples(COUPLING_RANGE) {
         let k = law.coupling.eval(i11);
         if !(k.k.is_finite() && k.dk.is_finite()) {
-            return Err(format!(
-                "{}: [coupling]: k11 = {}, dk11/dI11 = {} at I11 = {i11}: expected finite values (nothing written)",
-                spec.source, k.k, k.dk
-            ));
+            return Err(CurvesError::CouplingOverflow {
+                source_file: spec.source.clone(),
+                k: k.k,
+                dk: k.dk,
+                i11,
+            });
         }
     }
     Ok(())
@@ -98,12 +161,11 @@ fn check_finite(spec: &MaterialSpec, law: &UdNcf) -> Result<(), String> {
 ///
 /// # Errors
 /// Another law, or values that overflow, naming the set.
-pub fn curves_law(spec: &MaterialSpec) -> Result<UdNcf, String> {
+pub fn curves_law(spec: &MaterialSpec) -> Result<UdNcf, CurvesError> {
     let Material::UdNcf(law) = spec.material else {
-        return Err(format!(
-            "{}: material curves needs a UD-NCF parameter set (law = \"ud-ncf\")",
-            spec.source
-        ));
+        return Err(CurvesError::NotUdNcf {
+            source_file: spec.source.clone(),
+        });
     };
     check_finite(spec, &law)?;
     Ok(law)
@@ -115,7 +177,7 @@ pub fn curves_law(spec: &MaterialSpec) -> Result<UdNcf, String> {
 /// # Errors
 /// A message naming the file on I/O failure, or when the set is not a
 /// UD-NCF law.
-pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn write_curves(spec: &MaterialSpec, out: &Path) -> Result<Vec<PathBuf>, CurvesError> {
     write_law_curves(spec, &curves_law(spec)?, out)
 }
 
@@ -127,10 +189,13 @@ pub fn write_law_curves(
     spec: &MaterialSpec,
     law: &UdNcf,
     out: &Path,
-) -> Result<Vec<PathBuf>, String> {
+) -> Result<Vec<PathBuf>, CurvesError> {
     let law = *law;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let io = |path: &Path, e: std::io::Error| format!("{}: {e}", path.display());
+    let io = |path: &Path, error: std::io::Error| CurvesError::Write {
+        path: path.display().to_string(),
+        error,
+    };
+    std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
     let mut written = Vec::new();
     let preamble = |what: &str, term: Option<&GeneralizedTerm>| {
         let mut lines = vec![
@@ -274,7 +339,7 @@ fn write_pngs(
     w8: &[Vec<f64>],
     w11: &[Vec<f64>],
     k: &[Vec<f64>],
-) -> Result<Vec<PathBuf>, String> {
+) -> Result<Vec<PathBuf>, CurvesError> {
     let series = |label: &str, points| Series {
         label: label.to_string(),
         points,

@@ -57,6 +57,8 @@ pub fn tangent_tensor(tangent: &Tangent) -> [[[[f64; 2]; 2]; 2]; 2] {
 }
 
 /// Evaluates one input line; `Err` carries the message for that line.
+// A String error: it is the text of the line's `{"error": …}` answer, not
+// an error the program acts on (the command answers every line).
 pub fn eval_line(material: &Material, line: &str) -> Result<Value, String> {
     let input: EvalInput = serde_json::from_str(line).map_err(|e| {
         let message = e.to_string();

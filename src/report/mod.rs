@@ -37,9 +37,22 @@ use std::path::Path;
 use crate::solver::RunStatus;
 use crate::solver::explicit::ExplicitRecord;
 
-/// An I/O error message that names the path.
-fn io_err(path: &Path, e: impl std::fmt::Display) -> String {
-    format!("{}: {e}", path.display())
+/// An output file that could not be written: its path and why.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{path}: {error}")]
+pub struct WriteError {
+    /// The file.
+    pub path: String,
+    /// Why (the I/O or serialisation error).
+    pub error: String,
+}
+
+/// The [`WriteError`] of `path`.
+fn io_err(path: &Path, e: impl std::fmt::Display) -> WriteError {
+    WriteError {
+        path: path.display().to_string(),
+        error: e.to_string(),
+    }
 }
 
 /// What follows the load in the caption and the header of the last

@@ -159,7 +159,7 @@ fn write_state_vtu(
     u: &[f64],
     fields: &[ElementFields],
     (displacement, note): (f64, &str),
-) -> Result<(), String> {
+) -> Result<(), crate::report::WriteError> {
     let mesh = &built.mesh;
     let points: Vec<[f64; 3]> = mesh
         .nodes

@@ -150,7 +150,9 @@ fn cancel_on_signals() -> CancelToken {
     token
 }
 
-fn run(cli: Cli) -> Result<ExitCode, String> {
+/// The command's work; its error is what `main` prints after `error: `
+/// (every seam below returns a typed error; here only its message counts).
+fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
     match cli.command {
         Command::Run { case, out, quiet } => {
             let status =
@@ -159,7 +161,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
         }
         Command::Material { command } => match command {
             MaterialCommand::Eval { params } => {
-                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let spec = MaterialSpec::load(&params)?;
                 let stdin = io::stdin();
                 let summary = material_eval::run(
                     &spec.material,
@@ -179,7 +181,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 Ok(ExitCode::SUCCESS)
             }
             MaterialCommand::Curves { params, out } => {
-                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let spec = MaterialSpec::load(&params)?;
                 // Bad input (exit 1) apart from a write failure (exit 5).
                 let law = material_curves::curves_law(&spec)?;
                 let written = match material_curves::write_law_curves(&spec, &law, &out) {
@@ -199,7 +201,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 states,
                 seed,
             } => {
-                let spec = MaterialSpec::load(&params).map_err(|e| e.to_string())?;
+                let spec = MaterialSpec::load(&params)?;
                 let report = material_check::run_check(&spec, states, seed);
                 say_raw!("{}", material_check::format_report(&spec, &report));
                 if report.failed > 0 || report.rejected > 0 {

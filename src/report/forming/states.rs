@@ -36,7 +36,7 @@ pub(super) fn write_tool_vtu(
     tool: &BuiltTool,
     q: f64,
     load: f64,
-) -> Result<(), String> {
+) -> Result<(), crate::report::WriteError> {
     let shift = q * tool.direction;
     let points: Vec<[f64; 3]> = tool
         .drawing
