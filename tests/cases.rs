@@ -1229,7 +1229,7 @@ fn explicit_45_degree_run_matches_the_quasi_static_one() {
             .sum();
         (sum / reference.len() as f64).sqrt() / peak
     };
-    type Pick = fn(&ncform::report::oat::HistoryRow) -> f64;
+    type Pick = fn(&ncform::report::rows::HistoryRow) -> f64;
     let columns: [(&str, Pick); 4] = [
         ("force", |h| h.force),
         ("E22", |h| h.mdz_e22),

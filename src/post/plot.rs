@@ -97,13 +97,6 @@ pub enum PlotError {
     },
 }
 
-impl From<PlotError> for String {
-    /// The error's message, for callers whose errors are strings.
-    fn from(error: PlotError) -> Self {
-        error.to_string()
-    }
-}
-
 pub(crate) fn ensure_font() {
     REGISTER.call_once(|| {
         // The embedded font is a valid TrueType file; failure would be a

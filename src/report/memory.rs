@@ -4,8 +4,7 @@
 //! displacement and element fields, and the solve's figures. What a
 //! caller running cases from code (a fit, a sweep, a script) reads.
 
-use super::forming::FormingRow;
-use super::oat::HistoryRow;
+use super::rows::{FormingRow, HistoryRow};
 use super::runner::{Built, Recorded, Report, RunError, Solved};
 use crate::post::fields::{ElementFields, element_fields};
 

@@ -25,6 +25,7 @@ pub mod forming;
 pub mod memory;
 pub mod oat;
 pub mod progress;
+pub mod rows;
 mod runner;
 
 pub use files::{FolderReport, FolderSummary};

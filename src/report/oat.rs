@@ -19,6 +19,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::folder::{ExitStatus, MissingOutput, Outputs, RunFolder};
+use super::rows::{HistoryRow, REPORTED_DISPLACEMENTS};
 use super::runner::{Recorded, SolveTimings, Solved};
 use super::{UNITS, io_err};
 
@@ -30,33 +31,6 @@ use crate::post::plot::{Panel, PlotError, Series, write_panels};
 use crate::post::vtu::{Field, FieldData, PvdEntry, VtuPiece, write_pvd, write_vtu};
 use crate::solver::explicit::{Energies, MassSummary};
 use crate::solver::{ExplicitRecord, RunStatus};
-
-/// Displacements whose forces the summary always reports \[mm\].
-pub const REPORTED_DISPLACEMENTS: [f64; 4] = [20.0, 40.0, 60.0, 80.0];
-
-/// One row of the history: a converged step with its MDZ averages.
-#[derive(Debug, Clone, Serialize)]
-pub struct HistoryRow {
-    /// Clamp displacement \[mm\].
-    pub displacement: f64,
-    /// Clamp force \[N\].
-    pub force: f64,
-    /// MDZ mean of E22.
-    pub mdz_e22: f64,
-    /// MDZ mean of γ \[deg\].
-    pub mdz_shear_angle_deg: f64,
-    /// MDZ mean of E⊥.
-    pub mdz_e_perp: f64,
-    /// Newton iterations of the step (quasi-static).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub iterations: Option<usize>,
-    /// Time \[s\] (explicit).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub time: Option<f64>,
-    /// Time increments so far (explicit).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub increments: Option<usize>,
-}
 
 /// The JSON summary of a run.
 #[derive(Debug, Clone, Serialize)]

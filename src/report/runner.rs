@@ -11,9 +11,8 @@
 use serde::Serialize;
 
 use super::forming::readout::Readout;
-use super::forming::{FormingRow, forming_row};
-use super::oat::{HistoryRow, REPORTED_DISPLACEMENTS};
 use super::progress::Progress;
+use super::rows::{FormingRow, HistoryRow, REPORTED_DISPLACEMENTS, forming_row};
 use crate::case::forming::FormingCase;
 use crate::case::forming_model::FormingModel;
 use crate::case::{Case, OatCase, OatModel, SolverKind};

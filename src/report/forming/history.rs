@@ -7,13 +7,13 @@
 
 use std::path::Path;
 
-use super::FormingRow;
 use super::readout::{Readout, ZoneValue};
 use crate::case::forming::FormingCase;
 use crate::case::forming_model::FormingModel;
 use crate::post::csv::write_csv;
 use crate::post::plot::{Panel, Series, write_panels};
 use crate::report::folder::Outputs;
+use crate::report::rows::FormingRow;
 use crate::report::{UNITS, io_err, plot_suffix};
 use crate::solver::{ExplicitRecord, RunStatus};
 
@@ -117,40 +117,7 @@ pub(super) fn write_history(
     )
     .map_err(|e| io_err(&path, e));
     files.record(&path, written);
-    let suffix = plot_suffix(status);
-    let mut panels = Vec::new();
-    for (i, t) in built.tools.iter().enumerate() {
-        panels.push(Panel {
-            title: format!("{}{suffix}", t.spec.name),
-            x_label: format!("{} displacement [mm]", t.spec.name),
-            y_label: "force [N]".into(),
-            series: vec![Series {
-                label: "force".into(),
-                points: history
-                    .iter()
-                    .map(|h| (h.tools[i].displacement, h.tools[i].force))
-                    .collect(),
-            }],
-        });
-    }
-    for (i, b) in case.boundaries.iter().enumerate() {
-        panels.push(Panel {
-            title: format!("boundary {} ({}){suffix}", i + 1, b.nodes),
-            x_label: "programme fraction [-]".into(),
-            y_label: "reaction [N]".into(),
-            series: ["x", "y", "z"]
-                .iter()
-                .enumerate()
-                .map(|(k, axis)| Series {
-                    label: (*axis).into(),
-                    points: history
-                        .iter()
-                        .map(|h| (h.load, h.reactions[i][k]))
-                        .collect(),
-                })
-                .collect(),
-        });
-    }
+    let panels = reaction_panels(case, built, history, status);
     if panels.is_empty() {
         return;
     }
@@ -302,6 +269,32 @@ pub fn write_forming_history(
     let written = write_csv(&path, &comments, &header_refs, &data).map_err(|e| io_err(&path, e));
     files.record(&path, written);
 
+    let panels = forming_panels(
+        (case, built, readout),
+        rows,
+        (&floating, stroke_name),
+        (status, stroke_label),
+    );
+    let cols = 2.min(panels.len());
+    let grid = panels.len().div_ceil(cols);
+    let path = out.join("forming.png");
+    let written = write_panels(
+        &path,
+        &panels,
+        (grid, cols),
+        (700 * cols as u32, 520 * grid as u32),
+    );
+    files.record(&path, written);
+}
+
+/// The panels of `forming.png`: the stroke force, the floating tools'
+/// lift, each ply's draw-in and the zones' mean shear against the stroke.
+fn forming_panels(
+    (case, built, readout): (&FormingCase, &FormingModel, &Readout),
+    rows: &[BlankRow],
+    (floating, stroke_name): (&[&str], &str),
+    (status, stroke_label): (&RunStatus, &str),
+) -> Vec<Panel> {
     let incomplete = plot_suffix(status);
     let x_label = format!("{stroke_label} [mm]");
     let curve = |label: String, f: &dyn Fn(&BlankRow) -> f64| Series {
@@ -355,14 +348,50 @@ pub fn write_forming_history(
                 .collect(),
         });
     }
-    let cols = 2.min(panels.len());
-    let grid = panels.len().div_ceil(cols);
-    let path = out.join("forming.png");
-    let written = write_panels(
-        &path,
-        &panels,
-        (grid, cols),
-        (700 * cols as u32, 520 * grid as u32),
-    );
-    files.record(&path, written);
+    panels
+}
+
+/// The panels of `reactions.png`: each tool's force against its
+/// displacement and each boundary's reaction against `λ`.
+fn reaction_panels(
+    case: &FormingCase,
+    built: &FormingModel,
+    history: &[FormingRow],
+    status: &RunStatus,
+) -> Vec<Panel> {
+    let suffix = plot_suffix(status);
+    let mut panels = Vec::new();
+    for (i, t) in built.tools.iter().enumerate() {
+        panels.push(Panel {
+            title: format!("{}{suffix}", t.spec.name),
+            x_label: format!("{} displacement [mm]", t.spec.name),
+            y_label: "force [N]".into(),
+            series: vec![Series {
+                label: "force".into(),
+                points: history
+                    .iter()
+                    .map(|h| (h.tools[i].displacement, h.tools[i].force))
+                    .collect(),
+            }],
+        });
+    }
+    for (i, b) in case.boundaries.iter().enumerate() {
+        panels.push(Panel {
+            title: format!("boundary {} ({}){suffix}", i + 1, b.nodes),
+            x_label: "programme fraction [-]".into(),
+            y_label: "reaction [N]".into(),
+            series: ["x", "y", "z"]
+                .iter()
+                .enumerate()
+                .map(|(k, axis)| Series {
+                    label: (*axis).into(),
+                    points: history
+                        .iter()
+                        .map(|h| (h.load, h.reactions[i][k]))
+                        .collect(),
+                })
+                .collect(),
+        });
+    }
+    panels
 }

@@ -30,77 +30,18 @@ use serde::Serialize;
 
 use self::history::{BlankRow, write_energy, write_forming_history, write_history};
 use self::maps::{OutlineState, write_outer_contours};
-use self::readout::{Readout, ZoneValue};
+use self::readout::Readout;
 use self::states::{ContactFields, contact_fields, file_stem, write_ply_state, write_tool_vtu};
 use super::folder::{ExitStatus, MissingOutput, Outputs, RunFolder};
+pub use super::rows::FormingRow;
 use super::runner::{Recorded, SolveTimings, Solved};
 use super::{UNITS, io_err};
 use crate::case::SolverKind;
 use crate::case::forming::{FormingCase, ToolMotion};
 use crate::case::forming_model::FormingModel;
-pub use crate::case::measure::ToolRow;
 use crate::post::vtu::{PvdEntry, write_pvd};
 use crate::solver::explicit::{Energies, MassSummary};
-use crate::solver::{ExplicitResult, RunStatus, Snapshot};
-
-/// One row of the history.
-#[derive(Debug, Clone, Serialize)]
-pub struct FormingRow {
-    /// Programme fraction `λ`.
-    pub load: f64,
-    /// Time \[s\] (explicit).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub time: Option<f64>,
-    /// Per tool.
-    pub tools: Vec<ToolRow>,
-    /// Per boundary condition: the total reaction force \[N\].
-    pub reactions: Vec<[f64; 3]>,
-    /// Per probe: the mean displacement of its nodes \[mm\].
-    pub probes: Vec<[f64; 3]>,
-    /// Newton iterations of the step (quasi-static).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub iterations: Option<usize>,
-    /// Newton solves beyond the first (contact augmentations).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub augmentations: Option<usize>,
-    /// Largest penetration after the step's last augmentation \[mm\].
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub max_penetration: Option<f64>,
-    /// Relative change of the contact multipliers in the last augmentation.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub multiplier_change: Option<f64>,
-    /// Closed contacts (node–tool pairs), of which slipping.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub contacts: Option<(usize, usize)>,
-    /// Final residual norm of the step \[N\] (quasi-static).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub residual: Option<f64>,
-    /// Time increments so far (explicit).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub increments: Option<usize>,
-    /// The stroke \[mm\]: the displacement of the prescribed tool that
-    /// moves farthest (`λ` without one).
-    pub stroke: f64,
-    /// Per floating tool, its lift: displacement against its direction \[mm\].
-    pub lifts: Vec<f64>,
-    /// Per ply, the draw-in at its edge midpoints and corners \[mm\]
-    /// (`forming.draw_in_points` names them).
-    pub draw_in: Vec<Vec<f64>>,
-    /// Per zone of the case, the means over it.
-    pub zones: Vec<ZoneValue>,
-    /// Strain energy of the plies \[N·mm\] (quasi-static).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub internal_energy: Option<f64>,
-    /// Energy dissipated by the viscous stabilisation and the inertia's
-    /// backward Euler so far \[N·mm\] (quasi-static, `docs/solver.md`,
-    /// "Stabilisation", "Inertia").
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub stabilisation_energy: Option<f64>,
-    /// Kinetic energy of the free dofs \[N·mm\] (quasi-static with
-    /// `inertia_duration`; 0 without inertia).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub kinetic_energy: Option<f64>,
-}
+use crate::solver::{ExplicitResult, RunStatus};
 
 /// The JSON summary of a forming run.
 #[derive(Debug, Clone, Serialize)]
@@ -225,50 +166,6 @@ pub struct ModeAreas {
     /// (`I11 ≥ 1`, `I8 ≤ 1`), each to 0.1 %
     /// ([`crate::post::forming::deformation_mode`]).
     pub areas: [f64; crate::post::forming::MODES],
-}
-
-/// A history row at `load` from the state `snapshot`: what the built
-/// model measures ([`crate::case::measure`]) and what is read on the
-/// blanks; the solver-specific columns are left empty.
-pub fn forming_row(
-    case: &FormingCase,
-    built: &FormingModel,
-    readout: &Readout,
-    load: f64,
-    snapshot: &Snapshot,
-) -> FormingRow {
-    FormingRow {
-        load,
-        time: None,
-        tools: built.tool_rows(snapshot),
-        reactions: built.reactions(case, snapshot),
-        probes: built.probe_means(snapshot.u),
-        iterations: None,
-        augmentations: None,
-        max_penetration: None,
-        multiplier_change: None,
-        contacts: None,
-        residual: None,
-        increments: None,
-        stroke: built.stroke(load, snapshot.u),
-        lifts: built.lifts(snapshot.u),
-        draw_in: readout.draw_in(snapshot.u),
-        zones: readout.zones(case, built, snapshot.u),
-        internal_energy: None,
-        stabilisation_energy: None,
-        kinetic_energy: None,
-    }
-}
-
-impl FormingRow {
-    /// The force of the stroke tool (of the first tool without one), for
-    /// the progress line \[N\].
-    pub fn stroke_force(&self, readout: &Readout) -> f64 {
-        readout
-            .stroke_tool
-            .or((!self.tools.is_empty()).then_some(0))
-            .map_or(0.0, |t| self.tools[t].force)
-    }
 }
 
 /// The files of a forming run's folder, written as the states come.

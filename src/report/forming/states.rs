@@ -188,26 +188,7 @@ pub(super) fn write_ply_state(
     };
     let dic = dic_measures(built, p, u);
     let dic_columns = DicColumns::new(&dic);
-    let dic_fields = || {
-        vec![
-            Field {
-                name: "dic_shear_angle_deg",
-                data: FieldData::Scalar(&dic_columns.shear_angle_deg),
-            },
-            Field {
-                name: "dic_E22",
-                data: FieldData::Scalar(&dic_columns.e22),
-            },
-            Field {
-                name: "dic_E_perp",
-                data: FieldData::Scalar(&dic_columns.e_perp),
-            },
-            Field {
-                name: "dic_valid",
-                data: FieldData::Int(&dic_columns.valid),
-            },
-        ]
-    };
+    let dic_fields = || dic_cell_fields(&dic_columns);
     let columns = FieldColumns::new(&fields);
     let modes: Vec<u8> = fields
         .iter()
@@ -222,48 +203,7 @@ pub(super) fn write_ply_state(
         data: FieldData::Int(&mode_codes),
     });
     let dic_note = "dic_*: gamma, E22, E_perp recomputed on the mesh projected on the blank plane (2D image correlation, docs/forming.md); 0 where dic_valid = 0 (projected triangle turned over)";
-    let mut point_fields = vec![
-        Field {
-            name: "displacement",
-            data: FieldData::Vector3(&displacement),
-        },
-        Field {
-            name: "contact_status",
-            data: FieldData::Int(&contact.status),
-        },
-        Field {
-            name: "contact_pressure",
-            data: FieldData::Scalar(&contact.pressure),
-        },
-        Field {
-            name: "contact_normal_force",
-            data: FieldData::Scalar(&contact.normal_force),
-        },
-        Field {
-            name: "friction_force",
-            data: FieldData::Scalar(&contact.friction_force),
-        },
-        Field {
-            name: "slip",
-            data: FieldData::Scalar(&contact.slip),
-        },
-    ];
-    if ply_contact {
-        point_fields.extend([
-            Field {
-                name: "ply_contact_status",
-                data: FieldData::Int(&contact.ply_status),
-            },
-            Field {
-                name: "ply_contact_normal_force",
-                data: FieldData::Scalar(&contact.ply_normal_force),
-            },
-            Field {
-                name: "ply_contact_gap",
-                data: FieldData::Scalar(&contact.ply_gap),
-            },
-        ]);
-    }
+    let point_fields = ply_point_fields(&displacement, contact, ply_contact);
     let piece = VtuPiece {
         points: &points,
         triangles: &ply.mesh.triangles,
@@ -327,4 +267,78 @@ pub(super) fn write_ply_state(
         ply: ply_written,
         projection,
     }
+}
+
+/// The image-correlation cell fields of a ply's VTU and of its projection.
+fn dic_cell_fields(dic: &DicColumns) -> Vec<Field<'_>> {
+    vec![
+        Field {
+            name: "dic_shear_angle_deg",
+            data: FieldData::Scalar(&dic.shear_angle_deg),
+        },
+        Field {
+            name: "dic_E22",
+            data: FieldData::Scalar(&dic.e22),
+        },
+        Field {
+            name: "dic_E_perp",
+            data: FieldData::Scalar(&dic.e_perp),
+        },
+        Field {
+            name: "dic_valid",
+            data: FieldData::Int(&dic.valid),
+        },
+    ]
+}
+
+/// The point fields of a ply's VTU: the displacement and the contact
+/// figures (with the ply–ply ones when the model has ply–ply contact).
+fn ply_point_fields<'a>(
+    displacement: &'a [[f64; 3]],
+    contact: &'a ContactFields,
+    ply_contact: bool,
+) -> Vec<Field<'a>> {
+    let mut point_fields = vec![
+        Field {
+            name: "displacement",
+            data: FieldData::Vector3(displacement),
+        },
+        Field {
+            name: "contact_status",
+            data: FieldData::Int(&contact.status),
+        },
+        Field {
+            name: "contact_pressure",
+            data: FieldData::Scalar(&contact.pressure),
+        },
+        Field {
+            name: "contact_normal_force",
+            data: FieldData::Scalar(&contact.normal_force),
+        },
+        Field {
+            name: "friction_force",
+            data: FieldData::Scalar(&contact.friction_force),
+        },
+        Field {
+            name: "slip",
+            data: FieldData::Scalar(&contact.slip),
+        },
+    ];
+    if ply_contact {
+        point_fields.extend([
+            Field {
+                name: "ply_contact_status",
+                data: FieldData::Int(&contact.ply_status),
+            },
+            Field {
+                name: "ply_contact_normal_force",
+                data: FieldData::Scalar(&contact.ply_normal_force),
+            },
+            Field {
+                name: "ply_contact_gap",
+                data: FieldData::Scalar(&contact.ply_gap),
+            },
+        ]);
+    }
+    point_fields
 }
