@@ -17,7 +17,7 @@
 //! (`[[tool]]`) and `output.rs` (`[output]`); this module checks what
 //! spans tables (gravity and the explicit solver need every ply's areal
 //! mass, ply–ply contact needs the explicit solver, a run where nothing
-//! moves needs a duration) and computes the stroke. `build.rs` turns the
+//! moves needs a duration) and computes the prescribed travel. `build.rs` turns the
 //! validated case into a model.
 
 use std::path::Path;
@@ -97,8 +97,11 @@ pub struct FormingCase {
     pub states: Vec<f64>,
     /// History rows of an explicit run.
     pub history_rows: usize,
-    /// Largest prescribed displacement \[mm\] (the stroke), if anything moves.
-    pub stroke: Option<f64>,
+    /// The largest prescribed displacement of a tool or a boundary \[mm\],
+    /// if anything moves: what an explicit run's speed is applied to to
+    /// give its duration. (The stroke reported on every state is the
+    /// stroke tool's displacement: [`FormingModel::stroke`](crate::case::forming_model::FormingModel::stroke).)
+    pub prescribed_travel: Option<f64>,
 }
 
 /// `true` when a case text describes a forming set-up (it has plies).
@@ -203,14 +206,14 @@ impl FormingCase {
         let probes = conditions::probes(&check, &raw.probe, &plies)?;
         let zones = conditions::zones(&check, &raw.zone, &plies)?;
         let contact = contact::settings(&check, raw.contact.as_ref())?;
-        let stroke = stroke(&tools, &boundaries);
+        let travel = prescribed_travel(&tools, &boundaries);
         let (solver_kind, solver, explicit) = solver_settings(
             &check,
             raw.solver,
             raw.explicit.as_ref(),
             &raw.ply_contact,
             &plies,
-            stroke,
+            travel,
         )?;
         let output::Outputs {
             camera,
@@ -238,7 +241,7 @@ impl FormingCase {
             explicit,
             states: (1..=states).map(|k| k as f64 / states as f64).collect(),
             history_rows,
-            stroke,
+            prescribed_travel: travel,
         })
     }
 
@@ -254,7 +257,7 @@ impl FormingCase {
 
 /// The largest prescribed displacement of a tool or a boundary \[mm\],
 /// `None` when nothing moves.
-fn stroke(tools: &[ToolSpec], boundaries: &[BoundarySpec]) -> Option<f64> {
+fn prescribed_travel(tools: &[ToolSpec], boundaries: &[BoundarySpec]) -> Option<f64> {
     tools
         .iter()
         .filter_map(|t| match t.motion {
@@ -280,11 +283,11 @@ fn solver_settings(
     explicit_raw: Option<&ExplicitRaw>,
     ply_contact: &[PlyContactRaw],
     plies: &[PlySpec],
-    stroke: Option<f64>,
+    travel: Option<f64>,
 ) -> Result<(SolverKind, NewtonParameters, ExplicitSettings), ConfigError> {
     let (solver_kind, solver) = solver_choice(choice, check)?;
     validate_solver(&solver, check.source)?;
-    if stroke.is_none()
+    if travel.is_none()
         && solver_kind == SolverKind::Explicit
         && explicit_raw.is_none_or(|e| e.duration.is_none())
     {
@@ -293,7 +296,7 @@ fn solver_settings(
             "the duration of the run [s] (no tool or boundary moves, so no speed sets it)",
         ));
     }
-    let explicit = ExplicitSettings::from_raw(explicit_raw, check, stroke.unwrap_or(1.0))?;
+    let explicit = ExplicitSettings::from_raw(explicit_raw, check, travel.unwrap_or(1.0))?;
     if solver_kind == SolverKind::QuasiStatic
         && let Some(c) = ply_contact.first()
     {
