@@ -132,3 +132,29 @@ fn a_hemisphere_run_in_memory_gives_the_command_line_punch_force() {
     assert_eq!(last.fields.len(), 1, "one ply");
     assert_eq!(last.fields[0].len(), 2 * 16 * 16);
 }
+
+/// The command line reads a case only through `Case::load`: a case file
+/// that is not UTF-8 is refused with its line and byte (before, the binary
+/// read the text itself to tell the scenario and said only that the stream
+/// was not UTF-8), exit 1, and no output folder.
+#[test]
+fn the_command_line_reads_cases_through_the_library() {
+    let dir = TempDir::new().unwrap();
+    let path = dir.path().join("bad.toml");
+    let mut bytes = b"title = \"x\"\n[specimen]\nwidth = 1".to_vec();
+    bytes.push(0xff);
+    std::fs::write(&path, &bytes).unwrap();
+    let out = dir.path().join("out");
+    let done = Command::new(env!("CARGO_BIN_EXE_ncform"))
+        .args(["run", path.to_str().unwrap(), "--quiet", "--out"])
+        .arg(&out)
+        .output()
+        .expect("ncform runs");
+    assert_eq!(done.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(
+        stderr.contains("bad.toml") && stderr.contains("line 3, byte 10: not UTF-8 text"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "no folder for a case that cannot be read");
+}
