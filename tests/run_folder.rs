@@ -590,3 +590,60 @@ fn exit_codes_have_one_meaning_each() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("not empty"), "{err}");
 }
+
+/// docs/cases.md "The run folder": an output is written under
+/// `<name>.partial` and renamed into place when whole; a write that fails
+/// part-way (here a writer that writes some bytes and then fails, and a VTU
+/// folder replaced by a file) leaves no file under the real name and no
+/// partial file, is listed as missing, and `status.json` still records the
+/// final status.
+#[test]
+fn a_write_failing_part_way_leaves_no_file_under_its_name() {
+    let dir = TempDir::new().unwrap();
+    let case = oat(dir.path(), "case.toml", OAT);
+    let out = dir.path().join("out");
+    let mut folder = RunFolder::prepare(&out, &case.source, &case.title, &["vtu"]).unwrap();
+    let half = out.join("half.json");
+    let written = folder.outputs_mut().write(&half, |p| {
+        fs::write(p, "{\"half\": ")?;
+        Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            "no space left (simulated)",
+        ))
+    });
+    assert!(!written);
+    assert!(!half.exists(), "a half file under the real name");
+    assert!(!out.join("half.json.partial").exists(), "the partial file");
+    // The VTU folder replaced by a file: every VTU write fails.
+    fs::remove_dir(out.join("vtu")).unwrap();
+    fs::write(out.join("vtu"), "not a folder").unwrap();
+    let s = run_case_in(&case, &mut folder, Progress::Quiet, &CancelToken::new()).unwrap();
+    assert_eq!(s.status, RunStatus::Complete);
+    assert_eq!(s.exit_status, ExitStatus::OutputsMissing);
+    let st = status(&out);
+    assert_eq!(st["status"], "complete");
+    assert_eq!(st["exit_code"], 5);
+    let missing: Vec<&str> = st["missing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["path"].as_str().unwrap())
+        .collect();
+    for m in ["half.json", "vtu/oat_d002.500.vtu", "vtu/oat_d005.000.vtu"] {
+        assert!(missing.contains(&m), "{m} missing in {missing:?}");
+    }
+    let present = files_under(&out);
+    assert!(
+        present
+            .keys()
+            .all(|f| !f.ends_with(".partial") && !f.ends_with(".tmp")),
+        "{present:?}"
+    );
+    fs::remove_file(out.join("vtu")).unwrap();
+    assert_manifest_is_the_folder(&out);
+    // The files written are whole: summary.json is JSON.
+    assert_eq!(
+        summary(&out)["outputs_missing"].as_array().unwrap().len(),
+        3
+    );
+}

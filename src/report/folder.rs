@@ -12,9 +12,11 @@
 //!   (path relative to the folder, bytes) and every output it could not
 //!   write, with the error. It is replaced atomically (written beside,
 //!   then renamed), so a reader never sees half of it.
-//! - Every output goes through [`Outputs::record`]: a write that fails is
-//!   reported on stderr and listed as missing, and the run goes on with
-//!   the others.
+//! - Every output goes through [`Outputs::write`]: it is written under
+//!   `<name>.partial` and renamed into place when complete, so a file
+//!   under its real name is never half written; a write that fails leaves
+//!   no file, is reported on stderr and listed as missing, and the run goes
+//!   on with the others.
 //!
 //! The exit codes of the command line, one meaning each, are
 //! [`ExitStatus`].
@@ -164,6 +166,60 @@ pub struct StatusFile {
     pub missing: Vec<MissingOutput>,
 }
 
+/// The name an output is written under before it is complete:
+/// `<name>.partial`, beside it.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let mut partial = path.as_os_str().to_os_string();
+    partial.push(".partial");
+    PathBuf::from(partial)
+}
+
+/// Writes the file `path` whole or not at all: `write` writes it under
+/// [`partial_path`], which is renamed to `path` only when the write
+/// succeeded; on a failure the partial file is removed (if that fails too
+/// it is left, said on stderr: its name says it is partial), so a file
+/// under its real name is always complete. Returns its size.
+///
+/// # Errors
+/// The error of `write` or of the rename, naming `path` (not the partial
+/// name).
+pub fn write_whole<E: std::fmt::Display>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<u64, String> {
+    let partial = partial_path(path);
+    let named = |e: std::io::Error| format!("{}: {e}", path.display());
+    let result = write(&partial)
+        // The writers name the file they were given: the message names
+        // the output.
+        .map_err(|e| {
+            e.to_string()
+                .replace(&partial.display().to_string(), &path.display().to_string())
+        })
+        .and_then(|()| std::fs::metadata(&partial).map_err(named))
+        .and_then(|meta| {
+            std::fs::rename(&partial, path)
+                .map(|()| meta.len())
+                .map_err(named)
+        });
+    if result.is_err() {
+        remove_partial(&partial);
+    }
+    result
+}
+
+/// Removes the partial file `partial` of a failed write, if there is one;
+/// a removal that fails is said on stderr.
+fn remove_partial(partial: &Path) {
+    match std::fs::remove_file(partial) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => eprintln!(
+            "warning: the partial file {} of a failed write could not be removed ({e}); it is not an output",
+            partial.display()
+        ),
+        _ => {}
+    }
+}
+
 /// What a run wrote and what it could not, under its folder.
 #[derive(Debug, Clone)]
 pub struct Outputs {
@@ -196,16 +252,16 @@ impl Outputs {
             .join("/")
     }
 
-    /// Records the outcome of writing `path`: its size when `result` is
-    /// `Ok`, else a missing output, reported on stderr. Returns whether it
-    /// was written.
-    pub fn record<E: std::fmt::Display>(&mut self, path: &Path, result: Result<(), E>) -> bool {
+    /// Writes the output `path` whole or not at all ([`write_whole`]) and
+    /// records it: its size when written, else a missing output, reported
+    /// on stderr. Returns whether it was written.
+    pub fn write<E: std::fmt::Display>(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&Path) -> Result<(), E>,
+    ) -> bool {
         let rel = self.relative(path);
-        match result.map_err(|e| e.to_string()).and_then(|()| {
-            std::fs::metadata(path)
-                .map(|m| m.len())
-                .map_err(|e| format!("{}: {e}", path.display()))
-        }) {
+        match write_whole(path, write) {
             Ok(bytes) => {
                 self.missing.retain(|m| m.path != rel);
                 self.files.insert(rel, bytes);
@@ -401,8 +457,11 @@ fn write_atomic(path: &Path, text: &str) -> std::io::Result<()> {
     let mut tmp = path.as_os_str().to_os_string();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)
+    let result = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
+    if result.is_err() {
+        remove_partial(&tmp);
+    }
+    result
 }
 
 impl RunFolder {
