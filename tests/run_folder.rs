@@ -647,3 +647,103 @@ fn a_write_failing_part_way_leaves_no_file_under_its_name() {
         3
     );
 }
+
+/// docs/cases.md "The run folder": a `status.json` that cannot be rewritten
+/// at the end (here its rename is blocked by a folder at
+/// `status.json.tmp`) makes the exit status 5; the file left says
+/// `running` (stderr says it is stale), the folder blocking it is left.
+#[test]
+fn a_status_that_cannot_be_rewritten_makes_the_exit_status_5() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let mut folder = RunFolder::prepare(&out, "case.toml", "title", &[]).unwrap();
+    let blocker = out.join(format!("{STATUS_FILE}.tmp"));
+    fs::create_dir(&blocker).unwrap();
+    write(&blocker.join("inside"), "x");
+    assert_eq!(
+        folder.finish(&RunStatus::Complete),
+        ExitStatus::OutputsMissing
+    );
+    drop(folder);
+    assert_eq!(status(&out)["status"], "running");
+    assert!(blocker.join("inside").is_file(), "not ncform's to remove");
+}
+
+/// docs/cases.md "The run folder": two runs preparing one new folder at the
+/// same moment: one gets it, the other is refused as "a run still going
+/// on" (never a file-system error, never a folder taken by both).
+#[test]
+fn of_two_runs_preparing_one_folder_at_once_one_is_refused() {
+    for round in 0..200 {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("out");
+        let barrier = std::sync::Arc::new(std::sync::Barrier::new(2));
+        let racers: Vec<_> = (0..2)
+            .map(|_| {
+                let (out, barrier) = (out.clone(), barrier.clone());
+                std::thread::spawn(move || {
+                    barrier.wait();
+                    RunFolder::prepare(&out, "case.toml", "title", &["vtu"])
+                })
+            })
+            .collect();
+        let results: Vec<_> = racers.into_iter().map(|r| r.join().unwrap()).collect();
+        let won = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(won, 1, "round {round}: {results:?}");
+        let refusal = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+        assert!(
+            refusal.to_string().contains("holds a run still going on"),
+            "round {round}: {refusal}"
+        );
+        assert_eq!(status(&out)["status"], "running");
+        assert!(!dir.path().join("out.previous").exists(), "round {round}");
+    }
+}
+
+/// docs/cases.md "The run folder": a folder whose `status.json` is not an
+/// ncform run's is refused with what is wrong with that file.
+#[test]
+fn a_foreign_status_file_is_refused_saying_what_is_wrong() {
+    let dir = TempDir::new().unwrap();
+    let case = oat(dir.path(), "case.toml", OAT);
+    let out = dir.path().join("out");
+    fs::create_dir(&out).unwrap();
+    for (content, says) in [
+        (Some("status: fine\n"), "it is not JSON"),
+        (Some(""), "it is not JSON"),
+        (
+            Some(r#"{"format": "other-tool-3", "status": "done"}"#),
+            "its format is 'other-tool-3'",
+        ),
+        (Some(r#"{"status": "done"}"#), "has no \"format\""),
+        (
+            Some(r#"{"format": "ncform-run-folder-1", "status": 3}"#),
+            "not in the format it names",
+        ),
+        (None, "cannot be read"),
+    ] {
+        let path = out.join(STATUS_FILE);
+        if path.is_file() {
+            fs::remove_file(&path).unwrap();
+        }
+        match content {
+            Some(text) => write(&path, text),
+            None => {
+                fs::create_dir(&path).unwrap();
+                path.clone()
+            }
+        };
+        let err = run_case(&case, &out, Progress::Quiet)
+            .expect_err("must refuse")
+            .to_string();
+        assert!(
+            err.contains("not an ncform run's") && err.contains(says),
+            "{says}: {err}"
+        );
+        assert!(!err.contains("no status.json"), "{err}");
+        assert!(!dir.path().join("out.previous").exists());
+        if content.is_none() {
+            fs::remove_dir(&path).unwrap();
+        }
+    }
+}
