@@ -747,3 +747,49 @@ fn a_foreign_status_file_is_refused_saying_what_is_wrong() {
         }
     }
 }
+
+/// docs/cases.md "Interrupts and write failures": under a file-size limit
+/// (`ulimit -f`) the writes past it fail with EFBIG (SIGXFSZ is ignored,
+/// it does not kill the run): exit code 5, a `status.json` with the final
+/// status and the outputs not written, no truncated file under a real
+/// name. The case is cases/oat45.toml at 15 mm elements (a run of a
+/// second).
+#[test]
+fn a_file_size_limit_leaves_outputs_missing_not_truncated() {
+    let dir = TempDir::new().unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/oat45.toml");
+    let text = fs::read_to_string(shipped).unwrap();
+    let coarse = text.replacen("element_size = 2.7", "element_size = 15.0", 1);
+    assert_ne!(coarse, text, "the mesh line of cases/oat45.toml");
+    let case = write(&dir.path().join("oat45.toml"), &coarse);
+    let out = dir.path().join("out");
+    let run = Command::new("sh")
+        .arg("-c")
+        .arg(r#"ulimit -f 64; exec "$0" run --quiet --out "$1" "$2""#)
+        .arg(env!("CARGO_BIN_EXE_ncform"))
+        .arg(&out)
+        .arg(&case)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(5), "{stderr}");
+    let st = status(&out);
+    assert_eq!(st["status"], "complete", "{st}");
+    assert_eq!(st["exit_code"], 5);
+    let missing = st["missing"].as_array().unwrap();
+    assert!(!missing.is_empty());
+    for m in missing {
+        assert!(
+            m["error"].as_str().unwrap().contains("too large"),
+            "EFBIG: {m}"
+        );
+    }
+    assert!(stderr.contains("output not written"), "{stderr}");
+    // Every file present is whole: listed in the manifest with its size,
+    // no partial or temporary file left.
+    assert_manifest_is_the_folder(&out);
+    for m in missing {
+        let path = out.join(m["path"].as_str().unwrap());
+        assert!(!path.exists(), "{}", path.display());
+    }
+}
