@@ -516,8 +516,7 @@ fn run_alive(pid: u32, out: &Path) -> bool {
         let key = held_key(out);
         HELD.lock()
             .unwrap_or_else(|e| e.into_inner())
-            .iter()
-            .any(|h| *h == key)
+            .contains(&key)
     } else {
         Path::new("/proc").join(pid.to_string()).is_dir()
     }
