@@ -793,3 +793,40 @@ fn a_file_size_limit_leaves_outputs_missing_not_truncated() {
         assert!(!path.exists(), "{}", path.display());
     }
 }
+
+/// As above on a folder holding an earlier (finished) run: one run moves it
+/// aside and takes the folder, the other is refused; the run going on is
+/// never moved aside.
+#[test]
+fn of_two_runs_replacing_an_earlier_run_at_once_one_is_refused() {
+    for round in 0..100 {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("out");
+        RunFolder::prepare(&out, "old.toml", "old", &[])
+            .unwrap()
+            .finish(&RunStatus::Complete);
+        let barrier = std::sync::Arc::new(std::sync::Barrier::new(2));
+        let racers: Vec<_> = (0..2)
+            .map(|_| {
+                let (out, barrier) = (out.clone(), barrier.clone());
+                std::thread::spawn(move || {
+                    barrier.wait();
+                    RunFolder::prepare(&out, "case.toml", "title", &["vtu"])
+                })
+            })
+            .collect();
+        let results: Vec<_> = racers.into_iter().map(|r| r.join().unwrap()).collect();
+        let won = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(won, 1, "round {round}: {results:?}");
+        let refusal = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+        assert!(
+            refusal.to_string().contains("holds a run still going on"),
+            "round {round}: {refusal}"
+        );
+        assert_eq!(status(&out)["status"], "running");
+        assert_eq!(status(&out)["case"], "case.toml");
+        let aside = dir.path().join("out.previous");
+        assert_eq!(status(&aside)["case"], "old.toml", "round {round}");
+        assert!(!dir.path().join("out.previous-2").exists(), "round {round}");
+    }
+}

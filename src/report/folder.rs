@@ -522,6 +522,32 @@ fn run_alive(pid: u32, out: &Path) -> bool {
     }
 }
 
+/// Waits for and takes an exclusive lock (`flock`) on the folder holding
+/// `out` (made if missing), released when the returned handle is dropped
+/// (or the process ends). Best effort: `None` when it cannot be had — the
+/// exclusive creation of `status.json` still keeps two runs apart.
+fn lock_parent(out: &Path) -> Option<std::fs::File> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        let parent = out
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(parent).ok()?;
+        let dir = std::fs::File::open(parent).ok()?;
+        // SAFETY: flock on the descriptor of a file this function holds
+        // open.
+        let locked = unsafe { libc::flock(dir.as_raw_fd(), libc::LOCK_EX) } == 0;
+        locked.then_some(dir)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = out;
+        None
+    }
+}
+
 /// Attempts at preparing a folder in which a run appears at the moment it
 /// is prepared, before the preparation gives up.
 const PREPARE_ATTEMPTS: usize = 5;
@@ -590,6 +616,9 @@ impl RunFolder {
         title: &str,
         subdirs: &[&str],
     ) -> Result<Self, FolderError> {
+        // Preparations beside one another take turns: the inspection, the
+        // move aside and the creation of status.json are one step.
+        let _turn = lock_parent(out);
         for _ in 0..PREPARE_ATTEMPTS {
             if let Some(folder) = Self::try_prepare(out, case, title, subdirs)? {
                 return Ok(folder);
