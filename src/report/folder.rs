@@ -5,13 +5,19 @@
 //!   (recognised by its `status.json`, or the `summary.json` of a run from
 //!   before status files) is moved aside whole to `<out>.previous` (or
 //!   `<out>.previous-2`, `-3`, …: nothing is deleted); a non-empty folder
-//!   that is not an ncform run is refused; an empty or missing one is used.
+//!   that is not an ncform run (or whose `status.json` is not an ncform
+//!   run's, said with what is wrong with it) is refused; an empty or
+//!   missing one is used. Preparations beside one another take turns (a
+//!   lock on the folder holding them), and `status.json` is created
+//!   exclusively: of two runs started at once on one folder, one is
+//!   refused as a run still going on.
 //! - `status.json` is written first as `running` (case, start time, pid,
 //!   ncform version) and rewritten last as `complete`, `incomplete`,
 //!   `interrupted` or `failed`, with the manifest: every file the run wrote
 //!   (path relative to the folder, bytes) and every output it could not
 //!   write, with the error. It is replaced atomically (written beside,
-//!   then renamed), so a reader never sees half of it.
+//!   then renamed), so a reader never sees half of it; when it cannot be
+//!   rewritten, stderr says it is stale.
 //! - Every output goes through [`Outputs::write`]: it is written under
 //!   `<name>.partial` and renamed into place when complete, so a file
 //!   under its real name is never half written; a write that fails leaves
