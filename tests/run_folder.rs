@@ -590,3 +590,243 @@ fn exit_codes_have_one_meaning_each() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("not empty"), "{err}");
 }
+
+/// docs/cases.md "The run folder": an output is written under
+/// `<name>.partial` and renamed into place when whole; a write that fails
+/// part-way (here a writer that writes some bytes and then fails, and a VTU
+/// folder replaced by a file) leaves no file under the real name and no
+/// partial file, is listed as missing, and `status.json` still records the
+/// final status.
+#[test]
+fn a_write_failing_part_way_leaves_no_file_under_its_name() {
+    let dir = TempDir::new().unwrap();
+    let case = oat(dir.path(), "case.toml", OAT);
+    let out = dir.path().join("out");
+    let mut folder = RunFolder::prepare(&out, &case.source, &case.title, &["vtu"]).unwrap();
+    let half = out.join("half.json");
+    let written = folder.outputs_mut().write(&half, |p| {
+        fs::write(p, "{\"half\": ")?;
+        Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            "no space left (simulated)",
+        ))
+    });
+    assert!(!written);
+    assert!(!half.exists(), "a half file under the real name");
+    assert!(!out.join("half.json.partial").exists(), "the partial file");
+    // The VTU folder replaced by a file: every VTU write fails.
+    fs::remove_dir(out.join("vtu")).unwrap();
+    fs::write(out.join("vtu"), "not a folder").unwrap();
+    let s = run_case_in(&case, &mut folder, Progress::Quiet, &CancelToken::new()).unwrap();
+    assert_eq!(s.status, RunStatus::Complete);
+    assert_eq!(s.exit_status, ExitStatus::OutputsMissing);
+    let st = status(&out);
+    assert_eq!(st["status"], "complete");
+    assert_eq!(st["exit_code"], 5);
+    let missing: Vec<&str> = st["missing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["path"].as_str().unwrap())
+        .collect();
+    for m in ["half.json", "vtu/oat_d002.500.vtu", "vtu/oat_d005.000.vtu"] {
+        assert!(missing.contains(&m), "{m} missing in {missing:?}");
+    }
+    let present = files_under(&out);
+    assert!(
+        present
+            .keys()
+            .all(|f| !f.ends_with(".partial") && !f.ends_with(".tmp")),
+        "{present:?}"
+    );
+    fs::remove_file(out.join("vtu")).unwrap();
+    assert_manifest_is_the_folder(&out);
+    // The files written are whole: summary.json is JSON.
+    assert_eq!(
+        summary(&out)["outputs_missing"].as_array().unwrap().len(),
+        3
+    );
+}
+
+/// docs/cases.md "The run folder": a `status.json` that cannot be rewritten
+/// at the end (here its rename is blocked by a folder at
+/// `status.json.tmp`) makes the exit status 5; the file left says
+/// `running` (stderr says it is stale), the folder blocking it is left.
+#[test]
+fn a_status_that_cannot_be_rewritten_makes_the_exit_status_5() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let mut folder = RunFolder::prepare(&out, "case.toml", "title", &[]).unwrap();
+    let blocker = out.join(format!("{STATUS_FILE}.tmp"));
+    fs::create_dir(&blocker).unwrap();
+    write(&blocker.join("inside"), "x");
+    assert_eq!(
+        folder.finish(&RunStatus::Complete),
+        ExitStatus::OutputsMissing
+    );
+    drop(folder);
+    assert_eq!(status(&out)["status"], "running");
+    assert!(blocker.join("inside").is_file(), "not ncform's to remove");
+}
+
+/// docs/cases.md "The run folder": two runs preparing one new folder at the
+/// same moment: one gets it, the other is refused as "a run still going
+/// on" (never a file-system error, never a folder taken by both).
+#[test]
+fn of_two_runs_preparing_one_folder_at_once_one_is_refused() {
+    for round in 0..200 {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("out");
+        let barrier = std::sync::Arc::new(std::sync::Barrier::new(2));
+        let racers: Vec<_> = (0..2)
+            .map(|_| {
+                let (out, barrier) = (out.clone(), barrier.clone());
+                std::thread::spawn(move || {
+                    barrier.wait();
+                    RunFolder::prepare(&out, "case.toml", "title", &["vtu"])
+                })
+            })
+            .collect();
+        let results: Vec<_> = racers.into_iter().map(|r| r.join().unwrap()).collect();
+        let won = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(won, 1, "round {round}: {results:?}");
+        let refusal = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+        assert!(
+            refusal.to_string().contains("holds a run still going on"),
+            "round {round}: {refusal}"
+        );
+        assert_eq!(status(&out)["status"], "running");
+        assert!(!dir.path().join("out.previous").exists(), "round {round}");
+    }
+}
+
+/// docs/cases.md "The run folder": a folder whose `status.json` is not an
+/// ncform run's is refused with what is wrong with that file.
+#[test]
+fn a_foreign_status_file_is_refused_saying_what_is_wrong() {
+    let dir = TempDir::new().unwrap();
+    let case = oat(dir.path(), "case.toml", OAT);
+    let out = dir.path().join("out");
+    fs::create_dir(&out).unwrap();
+    for (content, says) in [
+        (Some("status: fine\n"), "it is not JSON"),
+        (Some(""), "it is not JSON"),
+        (
+            Some(r#"{"format": "other-tool-3", "status": "done"}"#),
+            "its format is 'other-tool-3'",
+        ),
+        (Some(r#"{"status": "done"}"#), "has no \"format\""),
+        (
+            Some(r#"{"format": "ncform-run-folder-1", "status": 3}"#),
+            "not in the format it names",
+        ),
+        (None, "cannot be read"),
+    ] {
+        let path = out.join(STATUS_FILE);
+        if path.is_file() {
+            fs::remove_file(&path).unwrap();
+        }
+        match content {
+            Some(text) => write(&path, text),
+            None => {
+                fs::create_dir(&path).unwrap();
+                path.clone()
+            }
+        };
+        let err = run_case(&case, &out, Progress::Quiet)
+            .expect_err("must refuse")
+            .to_string();
+        assert!(
+            err.contains("not an ncform run's") && err.contains(says),
+            "{says}: {err}"
+        );
+        assert!(!err.contains("no status.json"), "{err}");
+        assert!(!dir.path().join("out.previous").exists());
+        if content.is_none() {
+            fs::remove_dir(&path).unwrap();
+        }
+    }
+}
+
+/// docs/cases.md "Interrupts and write failures": under a file-size limit
+/// (`ulimit -f`) the writes past it fail with EFBIG (SIGXFSZ is ignored,
+/// it does not kill the run): exit code 5, a `status.json` with the final
+/// status and the outputs not written, no truncated file under a real
+/// name. The case is cases/oat45.toml at 15 mm elements (a run of a
+/// second).
+#[test]
+fn a_file_size_limit_leaves_outputs_missing_not_truncated() {
+    let dir = TempDir::new().unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/oat45.toml");
+    let text = fs::read_to_string(shipped).unwrap();
+    let coarse = text.replacen("element_size = 2.7", "element_size = 15.0", 1);
+    assert_ne!(coarse, text, "the mesh line of cases/oat45.toml");
+    let case = write(&dir.path().join("oat45.toml"), &coarse);
+    let out = dir.path().join("out");
+    let run = Command::new("sh")
+        .arg("-c")
+        .arg(r#"ulimit -f 64; exec "$0" run --quiet --out "$1" "$2""#)
+        .arg(env!("CARGO_BIN_EXE_ncform"))
+        .arg(&out)
+        .arg(&case)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(5), "{stderr}");
+    let st = status(&out);
+    assert_eq!(st["status"], "complete", "{st}");
+    assert_eq!(st["exit_code"], 5);
+    let missing = st["missing"].as_array().unwrap();
+    assert!(!missing.is_empty());
+    for m in missing {
+        assert!(
+            m["error"].as_str().unwrap().contains("too large"),
+            "EFBIG: {m}"
+        );
+    }
+    assert!(stderr.contains("output not written"), "{stderr}");
+    // Every file present is whole: listed in the manifest with its size,
+    // no partial or temporary file left.
+    assert_manifest_is_the_folder(&out);
+    for m in missing {
+        let path = out.join(m["path"].as_str().unwrap());
+        assert!(!path.exists(), "{}", path.display());
+    }
+}
+
+/// As above on a folder holding an earlier (finished) run: one run moves it
+/// aside and takes the folder, the other is refused; the run going on is
+/// never moved aside.
+#[test]
+fn of_two_runs_replacing_an_earlier_run_at_once_one_is_refused() {
+    for round in 0..100 {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("out");
+        RunFolder::prepare(&out, "old.toml", "old", &[])
+            .unwrap()
+            .finish(&RunStatus::Complete);
+        let barrier = std::sync::Arc::new(std::sync::Barrier::new(2));
+        let racers: Vec<_> = (0..2)
+            .map(|_| {
+                let (out, barrier) = (out.clone(), barrier.clone());
+                std::thread::spawn(move || {
+                    barrier.wait();
+                    RunFolder::prepare(&out, "case.toml", "title", &["vtu"])
+                })
+            })
+            .collect();
+        let results: Vec<_> = racers.into_iter().map(|r| r.join().unwrap()).collect();
+        let won = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(won, 1, "round {round}: {results:?}");
+        let refusal = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+        assert!(
+            refusal.to_string().contains("holds a run still going on"),
+            "round {round}: {refusal}"
+        );
+        assert_eq!(status(&out)["status"], "running");
+        assert_eq!(status(&out)["case"], "case.toml");
+        let aside = dir.path().join("out.previous");
+        assert_eq!(status(&aside)["case"], "old.toml", "round {round}");
+        assert!(!dir.path().join("out.previous-2").exists(), "round {round}");
+    }
+}

@@ -20,7 +20,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::post::plot::{PlotError, ensure_font};
+use crate::post::plot::{PlotError, ensure_font, save_png};
 
 /// The colour of a triangle whose value is not finite.
 pub const NO_VALUE_GREY: [u8; 3] = [150, 150, 150];
@@ -533,14 +533,19 @@ pub fn write_contour_png_viewed(
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let root = BitMapBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {
-        let px0 = k as i32 * size.0 as i32 / maps.len() as i32;
-        let px1 = (k as i32 + 1) * size.0 as i32 / maps.len() as i32;
-        draw_map(&root, map, frame, (px0, px1), view).map_err(|e| fail(&e))?;
+    let dims = size;
+    let mut buffer = vec![0; 3 * dims.0 as usize * dims.1 as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, dims).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {
+            let px0 = k as i32 * size.0 as i32 / maps.len() as i32;
+            let px1 = (k as i32 + 1) * size.0 as i32 / maps.len() as i32;
+            draw_map(&root, map, frame, (px0, px1), view).map_err(|e| fail(&e))?;
+        }
+        root.present().map_err(|e| fail(&e))?;
     }
-    root.present().map_err(|e| fail(&e))?;
+    save_png(path, &buffer, dims).map_err(|e| fail(&e))?;
     Ok(())
 }
 

@@ -157,6 +157,19 @@ fn tick_label(value: f64, span: f64) -> String {
     }
 }
 
+/// Saves the RGB pixels `buffer` of a `dims` picture as a PNG at `path`
+/// (PNG whatever the name: outputs are written under a temporary name).
+pub(crate) fn save_png(path: &Path, buffer: &[u8], dims: (u32, u32)) -> image::ImageResult<()> {
+    image::save_buffer_with_format(
+        path,
+        buffer,
+        dims.0,
+        dims.1,
+        image::ColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+}
+
 /// Draws `panels` on a grid of `rows × cols` into a PNG of
 /// `width × height` pixels.
 ///
@@ -173,13 +186,18 @@ pub fn write_panels(
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let areas = root.split_evenly((rows, cols));
-    for (panel, area) in panels.iter().zip(areas.iter()) {
-        draw_panel(panel, area).map_err(|e| fail(&e))?;
+    let dims = (width, height);
+    let mut buffer = vec![0; 3 * dims.0 as usize * dims.1 as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, dims).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        let areas = root.split_evenly((rows, cols));
+        for (panel, area) in panels.iter().zip(areas.iter()) {
+            draw_panel(panel, area).map_err(|e| fail(&e))?;
+        }
+        root.present().map_err(|e| fail(&e))?;
     }
-    root.present().map_err(|e| fail(&e))?;
+    save_png(path, &buffer, dims).map_err(|e| fail(&e))?;
     Ok(())
 }
 
@@ -275,72 +293,78 @@ pub fn write_outlines_png(
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let root = BitMapBackend::new(path, (size, size)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let mut x = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut y = (f64::INFINITY, f64::NEG_INFINITY);
-    for &(px, py) in outlines.iter().flat_map(|s| &s.points) {
-        if px.is_finite() && py.is_finite() {
-            x = (x.0.min(px), x.1.max(px));
-            y = (y.0.min(py), y.1.max(py));
+    let dims = (size, size);
+    let mut buffer = vec![0; 3 * dims.0 as usize * dims.1 as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, dims).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        let mut x = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut y = (f64::INFINITY, f64::NEG_INFINITY);
+        for &(px, py) in outlines.iter().flat_map(|s| &s.points) {
+            if px.is_finite() && py.is_finite() {
+                x = (x.0.min(px), x.1.max(px));
+                y = (y.0.min(py), y.1.max(py));
+            }
         }
-    }
-    if !(x.0 <= x.1 && y.0 <= y.1) {
-        x = (-1.0, 1.0);
-        y = (-1.0, 1.0);
-    }
-    // Equal scale: the ranges get the aspect ratio of the plotting area
-    // (the titled area less the margins and label areas).
-    let area = root
-        .titled(title, ("sans-serif", 20))
-        .map_err(|e| fail(&e))?;
-    let (w, h) = area.dim_in_pixel();
-    let (margin, x_labels, y_labels) = (12u32, 50u32, 70u32);
-    let plot_w = f64::from(w.saturating_sub(2 * margin + y_labels).max(1));
-    let plot_h = f64::from(h.saturating_sub(2 * margin + x_labels).max(1));
-    let scale = (1.06 * (x.1 - x.0).max(1e-9) / plot_w).max(1.06 * (y.1 - y.0).max(1e-9) / plot_h);
-    let (hx, hy) = (0.5 * scale * plot_w, 0.5 * scale * plot_h);
-    let (cx, cy) = (0.5 * (x.0 + x.1), 0.5 * (y.0 + y.1));
-    let mut chart = ChartBuilder::on(&area)
-        .margin(margin)
-        .x_label_area_size(x_labels)
-        .y_label_area_size(y_labels)
-        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
-        .map_err(|e| fail(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("x [mm]")
-        .y_desc("y [mm]")
-        .label_style(("sans-serif", 14))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| fail(&e))?;
-    for (i, s) in outlines.iter().enumerate() {
-        let color = PALETTE[i % PALETTE.len()];
-        let closed = s
-            .points
-            .iter()
-            .chain(s.points.first())
-            .copied()
-            .filter(|(x, y)| x.is_finite() && y.is_finite());
+        if !(x.0 <= x.1 && y.0 <= y.1) {
+            x = (-1.0, 1.0);
+            y = (-1.0, 1.0);
+        }
+        // Equal scale: the ranges get the aspect ratio of the plotting area
+        // (the titled area less the margins and label areas).
+        let area = root
+            .titled(title, ("sans-serif", 20))
+            .map_err(|e| fail(&e))?;
+        let (w, h) = area.dim_in_pixel();
+        let (margin, x_labels, y_labels) = (12u32, 50u32, 70u32);
+        let plot_w = f64::from(w.saturating_sub(2 * margin + y_labels).max(1));
+        let plot_h = f64::from(h.saturating_sub(2 * margin + x_labels).max(1));
+        let scale =
+            (1.06 * (x.1 - x.0).max(1e-9) / plot_w).max(1.06 * (y.1 - y.0).max(1e-9) / plot_h);
+        let (hx, hy) = (0.5 * scale * plot_w, 0.5 * scale * plot_h);
+        let (cx, cy) = (0.5 * (x.0 + x.1), 0.5 * (y.0 + y.1));
+        let mut chart = ChartBuilder::on(&area)
+            .margin(margin)
+            .x_label_area_size(x_labels)
+            .y_label_area_size(y_labels)
+            .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
+            .map_err(|e| fail(&e))?;
         chart
-            .draw_series(LineSeries::new(closed, color.stroke_width(2)))
-            .map_err(|e| fail(&e))?
-            .label(&s.label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
+            .configure_mesh()
+            .x_desc("x [mm]")
+            .y_desc("y [mm]")
+            .label_style(("sans-serif", 14))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        for (i, s) in outlines.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let closed = s
+                .points
+                .iter()
+                .chain(s.points.first())
+                .copied()
+                .filter(|(x, y)| x.is_finite() && y.is_finite());
+            chart
+                .draw_series(LineSeries::new(closed, color.stroke_width(2)))
+                .map_err(|e| fail(&e))?
+                .label(&s.label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            // Outer contours enclose the blank's centre, so the middle of the
+            // picture is free of lines; a corner is where the blank's corners are.
+            .position(SeriesLabelPosition::MiddleMiddle)
+            .draw()
+            .map_err(|e| fail(&e))?;
+        root.present().map_err(|e| fail(&e))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        // Outer contours enclose the blank's centre, so the middle of the
-        // picture is free of lines; a corner is where the blank's corners are.
-        .position(SeriesLabelPosition::MiddleMiddle)
-        .draw()
-        .map_err(|e| fail(&e))?;
-    root.present().map_err(|e| fail(&e))?;
+    save_png(path, &buffer, dims).map_err(|e| fail(&e))?;
     Ok(())
 }

@@ -69,9 +69,9 @@ pub(crate) fn write_energy(
             row
         })
         .collect();
-    let written =
-        write_csv(&path, preamble, &header, &rows).map_err(|e| format!("{}: {e}", path.display()));
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_csv(p, preamble, &header, &rows).map_err(|e| format!("{}: {e}", path.display()))
+    });
     let series = |label: &str, f: fn(&ExplicitRecord) -> f64| Series {
         label: label.to_string(),
         points: records.iter().map(|r| ((axis.value)(r), f(r))).collect(),
@@ -90,33 +90,34 @@ pub(crate) fn write_energy(
         ]);
     }
     let path = out.join("energy.png");
-    let written = write_panels(
-        &path,
-        &[
-            Panel {
-                title: format!("energies{suffix}"),
-                x_label: axis.label.into(),
-                y_label: "energy [N*mm]".into(),
-                series: energies,
-            },
-            Panel {
-                title: "kinetic / stored energy".into(),
-                x_label: axis.label.into(),
-                y_label: "KE / (IE + CE) [%]".into(),
-                series: vec![series("KE/(IE+CE)", |r| 100.0 * r.energies.kinetic_ratio())],
-            },
-            Panel {
-                title: "energy balance error".into(),
-                x_label: axis.label.into(),
-                y_label: "log10 of the relative balance error [-]".into(),
-                // Near round-off (1e-12 … 1e-9): a logarithmic scale reads.
-                series: vec![series("log10(|balance| / scale)", |r| {
-                    r.energies.relative_balance_error.max(1e-300).log10()
-                })],
-            },
-        ],
-        (1, 3),
-        (1800, 550),
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_panels(
+            p,
+            &[
+                Panel {
+                    title: format!("energies{suffix}"),
+                    x_label: axis.label.into(),
+                    y_label: "energy [N*mm]".into(),
+                    series: energies,
+                },
+                Panel {
+                    title: "kinetic / stored energy".into(),
+                    x_label: axis.label.into(),
+                    y_label: "KE / (IE + CE) [%]".into(),
+                    series: vec![series("KE/(IE+CE)", |r| 100.0 * r.energies.kinetic_ratio())],
+                },
+                Panel {
+                    title: "energy balance error".into(),
+                    x_label: axis.label.into(),
+                    y_label: "log10 of the relative balance error [-]".into(),
+                    // Near round-off (1e-12 … 1e-9): a logarithmic scale reads.
+                    series: vec![series("log10(|balance| / scale)", |r| {
+                        r.energies.relative_balance_error.max(1e-300).log10()
+                    })],
+                },
+            ],
+            (1, 3),
+            (1800, 550),
+        )
+    });
 }

@@ -5,23 +5,33 @@
 //!   (recognised by its `status.json`, or the `summary.json` of a run from
 //!   before status files) is moved aside whole to `<out>.previous` (or
 //!   `<out>.previous-2`, `-3`, …: nothing is deleted); a non-empty folder
-//!   that is not an ncform run is refused; an empty or missing one is used.
+//!   that is not an ncform run (or whose `status.json` is not an ncform
+//!   run's, said with what is wrong with it) is refused; an empty or
+//!   missing one is used. Preparations beside one another take turns (a
+//!   lock on the folder holding them), and `status.json` is created
+//!   exclusively: of two runs started at once on one folder, one is
+//!   refused as a run still going on.
 //! - `status.json` is written first as `running` (case, start time, pid,
 //!   ncform version) and rewritten last as `complete`, `incomplete`,
 //!   `interrupted` or `failed`, with the manifest: every file the run wrote
 //!   (path relative to the folder, bytes) and every output it could not
 //!   write, with the error. It is replaced atomically (written beside,
-//!   then renamed), so a reader never sees half of it.
-//! - Every output goes through [`Outputs::record`]: a write that fails is
-//!   reported on stderr and listed as missing, and the run goes on with
-//!   the others.
+//!   then renamed), so a reader never sees half of it; when it cannot be
+//!   rewritten, stderr says it is stale.
+//! - Every output goes through [`Outputs::write`]: it is written under
+//!   `<name>.partial` and renamed into place when complete, so a file
+//!   under its real name is never half written; a write that fails leaves
+//!   no file, is reported on stderr and listed as missing, and the run goes
+//!   on with the others.
 //!
 //! The exit codes of the command line, one meaning each, are
 //! [`ExitStatus`].
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::SystemTime;
+use std::sync::Mutex;
+use std::time::{Duration, SystemTime};
 
 use serde::{Deserialize, Serialize};
 
@@ -164,6 +174,64 @@ pub struct StatusFile {
     pub missing: Vec<MissingOutput>,
 }
 
+/// The name an output is written under before it is complete:
+/// `<name>.partial`, beside it.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let mut partial = path.as_os_str().to_os_string();
+    partial.push(".partial");
+    PathBuf::from(partial)
+}
+
+/// Writes the file `path` whole or not at all: `write` writes it under
+/// [`partial_path`], which is renamed to `path` only when the write
+/// succeeded; on a failure the partial file is removed (if that fails too
+/// it is left, said on stderr: its name says it is partial), so a file
+/// under its real name is always complete. Returns its size.
+///
+/// # Errors
+/// The error of `write` or of the rename, naming `path` (not the partial
+/// name).
+pub fn write_whole<E: std::fmt::Display>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<u64, String> {
+    let partial = partial_path(path);
+    let named = |e: std::io::Error| format!("{}: {e}", path.display());
+    let result = write(&partial)
+        // The writers name the file they were given: the message names
+        // the output.
+        .map_err(|e| {
+            e.to_string()
+                .replace(&partial.display().to_string(), &path.display().to_string())
+        })
+        .and_then(|()| std::fs::metadata(&partial).map_err(named))
+        .and_then(|meta| {
+            std::fs::rename(&partial, path)
+                .map(|()| meta.len())
+                .map_err(named)
+        });
+    if result.is_err() {
+        remove_partial(&partial);
+    }
+    result
+}
+
+/// Removes the partial file `partial` of a failed write, if there is one
+/// (a folder of that name is not ncform's: it is left); a removal that
+/// fails is said on stderr.
+fn remove_partial(partial: &Path) {
+    if std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
+        return;
+    }
+    match std::fs::remove_file(partial) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => eprintln!(
+            "warning: the partial file {} of a failed write could not be removed ({e}); it is not an output",
+            partial.display()
+        ),
+        _ => {}
+    }
+}
+
 /// What a run wrote and what it could not, under its folder.
 #[derive(Debug, Clone)]
 pub struct Outputs {
@@ -196,16 +264,16 @@ impl Outputs {
             .join("/")
     }
 
-    /// Records the outcome of writing `path`: its size when `result` is
-    /// `Ok`, else a missing output, reported on stderr. Returns whether it
-    /// was written.
-    pub fn record<E: std::fmt::Display>(&mut self, path: &Path, result: Result<(), E>) -> bool {
+    /// Writes the output `path` whole or not at all ([`write_whole`]) and
+    /// records it: its size when written, else a missing output, reported
+    /// on stderr. Returns whether it was written.
+    pub fn write<E: std::fmt::Display>(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&Path) -> Result<(), E>,
+    ) -> bool {
         let rel = self.relative(path);
-        match result.map_err(|e| e.to_string()).and_then(|()| {
-            std::fs::metadata(path)
-                .map(|m| m.len())
-                .map_err(|e| format!("{}: {e}", path.display()))
-        }) {
+        match write_whole(path, write) {
             Ok(bytes) => {
                 self.missing.retain(|m| m.path != rel);
                 self.files.insert(rel, bytes);
@@ -253,6 +321,8 @@ impl Outputs {
 pub struct RunFolder {
     status: StatusFile,
     outputs: Outputs,
+    /// The folder's key in the folders this process holds.
+    held: PathBuf,
 }
 
 /// The current time in RFC 3339 (UTC, seconds).
@@ -276,6 +346,16 @@ pub enum FolderError {
         folder: String,
         /// One of its entries.
         entry: String,
+    },
+    /// A folder whose `status.json` is not an ncform run's.
+    #[error(
+        "output folder '{folder}' holds a {STATUS_FILE} that is not an ncform run's: {problem}; ncform never deletes files it did not write: choose another --out, or remove that file"
+    )]
+    ForeignStatus {
+        /// The folder.
+        folder: String,
+        /// What is wrong with the file.
+        problem: String,
     },
     /// A run still going on in the folder.
     #[error(
@@ -332,6 +412,46 @@ enum Existing {
     Run { running_pid: Option<u32> },
     /// Something else: refuse.
     Foreign(String),
+    /// A `status.json` that is not an ncform run's: what is wrong with it.
+    ForeignStatus(String),
+}
+
+/// Attempts at reading a `status.json` that is empty or ends early (a run
+/// preparing the folder at the same moment is writing it), 10 ms apart.
+const STATUS_READS: usize = 50;
+
+/// Reads the status file `path`: `Ok(None)` when there is none, else the
+/// file, or what is wrong with it (unreadable, not JSON, not ncform's
+/// format).
+fn read_status(path: &Path) -> Result<Option<StatusFile>, String> {
+    for attempt in 1..=STATUS_READS {
+        let text = match std::fs::read_to_string(path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(format!("it cannot be read ({e})")),
+        };
+        let value = match serde_json::from_str::<serde_json::Value>(&text) {
+            Ok(value) => value,
+            Err(e) if e.is_eof() && attempt < STATUS_READS => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+            Err(e) => return Err(format!("it is not JSON ({e})")),
+        };
+        let format = value.get("format").and_then(serde_json::Value::as_str);
+        if format != Some(STATUS_FORMAT) {
+            return Err(match format {
+                Some(f) => format!(
+                    "its format is '{f}', not '{STATUS_FORMAT}' (another program's, or another ncform version's)"
+                ),
+                None => format!("it has no \"format\": \"{STATUS_FORMAT}\""),
+            });
+        }
+        return serde_json::from_value::<StatusFile>(value)
+            .map(Some)
+            .map_err(|e| format!("it is not in the format it names ({e})"));
+    }
+    unreachable!("the last attempt returns")
 }
 
 /// Looks at the folder `out` (which exists and is a directory).
@@ -345,10 +465,8 @@ fn inspect(out: &Path) -> Result<Existing, FolderError> {
     let Some(first) = entries.next() else {
         return Ok(Existing::Empty);
     };
-    if let Ok(text) = std::fs::read_to_string(out.join(STATUS_FILE))
-        && let Ok(status) = serde_json::from_str::<StatusFile>(&text)
-        && status.format == STATUS_FORMAT
-    {
+    let status = read_status(&out.join(STATUS_FILE));
+    if let Ok(Some(status)) = &status {
         let running_pid = (status.status == FolderStatus::Running).then_some(status.pid);
         return Ok(Existing::Run { running_pid });
     }
@@ -362,16 +480,83 @@ fn inspect(out: &Path) -> Result<Existing, FolderError> {
     {
         return Ok(Existing::Run { running_pid: None });
     }
+    if let Err(problem) = status {
+        return Ok(Existing::ForeignStatus(problem));
+    }
     Ok(Existing::Foreign(
         first.file_name().to_string_lossy().into_owned(),
     ))
 }
 
-/// `true` when a process `pid` other than this one is running (Linux:
-/// `/proc/<pid>`; elsewhere unknown, taken as not running).
-fn process_alive(pid: u32) -> bool {
-    pid != std::process::id() && Path::new("/proc").join(pid.to_string()).is_dir()
+/// The folders this process holds a run in (a [`RunFolder`] not yet
+/// dropped), as made absolute by [`held_key`]; a folder appears once per
+/// holder (or preparer).
+static HELD: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// The key of the folder `out` in [`HELD`].
+fn held_key(out: &Path) -> PathBuf {
+    std::fs::canonicalize(out).unwrap_or_else(|_| out.to_path_buf())
 }
+
+/// Marks `key` held by this process.
+fn hold(key: &Path) {
+    HELD.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(key.to_path_buf());
+}
+
+/// Gives one hold of `key` up.
+fn release(key: &Path) {
+    let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(k) = held.iter().position(|h| h == key) {
+        held.swap_remove(k);
+    }
+}
+
+/// `true` when the run `pid` in the folder `out` is going on: another
+/// process `pid` is running (Linux: `/proc/<pid>`; elsewhere unknown,
+/// taken as not running), or `pid` is this process and it holds the
+/// folder (another thread's run).
+fn run_alive(pid: u32, out: &Path) -> bool {
+    if pid == std::process::id() {
+        let key = held_key(out);
+        HELD.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .contains(&key)
+    } else {
+        Path::new("/proc").join(pid.to_string()).is_dir()
+    }
+}
+
+/// Waits for and takes an exclusive lock (`flock`) on the folder holding
+/// `out` (made if missing), released when the returned handle is dropped
+/// (or the process ends). Best effort: `None` when it cannot be had — the
+/// exclusive creation of `status.json` still keeps two runs apart.
+fn lock_parent(out: &Path) -> Option<std::fs::File> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        let parent = out
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(parent).ok()?;
+        let dir = std::fs::File::open(parent).ok()?;
+        // SAFETY: flock on the descriptor of a file this function holds
+        // open.
+        let locked = unsafe { libc::flock(dir.as_raw_fd(), libc::LOCK_EX) } == 0;
+        locked.then_some(dir)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = out;
+        None
+    }
+}
+
+/// Attempts at preparing a folder in which a run appears at the moment it
+/// is prepared, before the preparation gives up.
+const PREPARE_ATTEMPTS: usize = 5;
 
 /// The first free `<out>.previous`, `<out>.previous-2`, … beside `out`.
 fn previous_path(out: &Path) -> Result<PathBuf, FolderError> {
@@ -401,8 +586,25 @@ fn write_atomic(path: &Path, text: &str) -> std::io::Result<()> {
     let mut tmp = path.as_os_str().to_os_string();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)
+    let result = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
+    if result.is_err() {
+        remove_partial(&tmp);
+    }
+    result
+}
+
+/// Creates the status file `path` with `status`, failing with
+/// `AlreadyExists` when there is one; a file left half written is removed.
+fn create_status(path: &Path, status: &StatusFile) -> std::io::Result<()> {
+    let text = serde_json::to_string_pretty(status).map_err(std::io::Error::other)? + "\n";
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)?;
+    file.write_all(text.as_bytes()).inspect_err(|_| {
+        drop(file);
+        remove_partial(path);
+    })
 }
 
 impl RunFolder {
@@ -420,6 +622,31 @@ impl RunFolder {
         title: &str,
         subdirs: &[&str],
     ) -> Result<Self, FolderError> {
+        // Preparations beside one another take turns: the inspection, the
+        // move aside and the creation of status.json are one step.
+        let _turn = lock_parent(out);
+        for _ in 0..PREPARE_ATTEMPTS {
+            if let Some(folder) = Self::try_prepare(out, case, title, subdirs)? {
+                return Ok(folder);
+            }
+        }
+        Err(FolderError::Io {
+            folder: out.display().to_string(),
+            error: format!(
+                "cannot write {STATUS_FILE}: another run took the folder at the same moment, {PREPARE_ATTEMPTS} times"
+            ),
+        })
+    }
+
+    /// One attempt at [`RunFolder::prepare`]: `None` when another run
+    /// created `status.json` between the inspection of the folder and the
+    /// creation of this run's (the next attempt inspects it again).
+    fn try_prepare(
+        out: &Path,
+        case: &str,
+        title: &str,
+        subdirs: &[&str],
+    ) -> Result<Option<Self>, FolderError> {
         let mut previous_run = None;
         match std::fs::metadata(out) {
             Ok(meta) if !meta.is_dir() => {
@@ -433,9 +660,15 @@ impl RunFolder {
                         entry,
                     });
                 }
+                Existing::ForeignStatus(problem) => {
+                    return Err(FolderError::ForeignStatus {
+                        folder: out.display().to_string(),
+                        problem,
+                    });
+                }
                 Existing::Run {
                     running_pid: Some(pid),
-                } if process_alive(pid) => {
+                } if run_alive(pid, out) => {
                     return Err(FolderError::StillRunning {
                         folder: out.display().to_string(),
                         pid,
@@ -458,37 +691,62 @@ impl RunFolder {
             },
             Err(_) => {}
         }
-        for dir in std::iter::once(out.to_path_buf()).chain(subdirs.iter().map(|d| out.join(d))) {
-            std::fs::create_dir_all(&dir).map_err(|e| FolderError::Io {
-                folder: dir.display().to_string(),
-                error: e.to_string(),
-            })?;
-        }
-        let folder = Self {
-            status: StatusFile {
-                format: STATUS_FORMAT.into(),
-                status: FolderStatus::Running,
-                outputs_complete: true,
-                exit_code: None,
-                ncform_version: env!("CARGO_PKG_VERSION").into(),
-                case: case.into(),
-                title: title.into(),
-                pid: std::process::id(),
-                started: now(),
-                finished: None,
-                solve: None,
-                error: None,
-                previous_run,
-                files: Vec::new(),
-                missing: Vec::new(),
-            },
-            outputs: Outputs::new(out),
-        };
-        folder.write_status().map_err(|e| FolderError::Io {
+        std::fs::create_dir_all(out).map_err(|e| FolderError::Io {
             folder: out.display().to_string(),
-            error: format!("cannot write {STATUS_FILE}: {e}"),
+            error: e.to_string(),
         })?;
-        Ok(folder)
+        let status = StatusFile {
+            format: STATUS_FORMAT.into(),
+            status: FolderStatus::Running,
+            outputs_complete: true,
+            exit_code: None,
+            ncform_version: env!("CARGO_PKG_VERSION").into(),
+            case: case.into(),
+            title: title.into(),
+            pid: std::process::id(),
+            started: now(),
+            finished: None,
+            solve: None,
+            error: None,
+            previous_run,
+            files: Vec::new(),
+            missing: Vec::new(),
+        };
+        // Held before status.json says running, so that another thread of
+        // this process sees the run as going on as soon as it is there.
+        let held = held_key(out);
+        hold(&held);
+        // Creating status.json is the one exclusive step: of two runs
+        // preparing the folder at once, one creates it, the other finds it.
+        match create_status(&out.join(STATUS_FILE), &status) {
+            Ok(()) => {}
+            Err(e) => {
+                release(&held);
+                if e.kind() == std::io::ErrorKind::AlreadyExists {
+                    return Ok(None);
+                }
+                return Err(FolderError::Io {
+                    folder: out.display().to_string(),
+                    error: format!("cannot write {STATUS_FILE}: {e}"),
+                });
+            }
+        }
+        let mut folder = Self {
+            status,
+            outputs: Outputs::new(out),
+            held,
+        };
+        for dir in subdirs.iter().map(|d| out.join(d)) {
+            if let Err(e) = std::fs::create_dir_all(&dir) {
+                let error = FolderError::Io {
+                    folder: dir.display().to_string(),
+                    error: e.to_string(),
+                };
+                folder.fail(&error.to_string());
+                return Err(error);
+            }
+        }
+        Ok(Some(folder))
     }
 
     /// The folder.
@@ -539,6 +797,21 @@ impl RunFolder {
         self.close(ExitStatus::BadInput);
     }
 
+    /// Says on stderr that `status.json` could not be rewritten with the
+    /// end of the run (`error`), so that it is stale: it still says
+    /// `running`, for a process that has ended.
+    fn say_stale(&self, error: &std::io::Error) {
+        let ended = serde_json::to_value(self.status.status)
+            .ok()
+            .and_then(|v| v.as_str().map(String::from))
+            .unwrap_or_default();
+        eprintln!(
+            "error: output not written: {}: {error}; that file is stale: it still says running (process {}), but the run ended {ended}",
+            self.path().join(STATUS_FILE).display(),
+            self.status.pid,
+        );
+    }
+
     fn close(&mut self, exit: ExitStatus) -> ExitStatus {
         self.status.outputs_complete = self.outputs.missing.is_empty();
         self.status.exit_code = Some(exit.code());
@@ -548,10 +821,7 @@ impl RunFolder {
         match self.write_status() {
             Ok(()) => exit,
             Err(e) => {
-                eprintln!(
-                    "error: output not written: {}: {e}",
-                    self.path().join(STATUS_FILE).display()
-                );
+                self.say_stale(&e);
                 if exit == ExitStatus::BadInput {
                     exit
                 } else {
@@ -568,9 +838,16 @@ impl RunFolder {
 /// `running` only ever means a run going on or killed.
 impl Drop for RunFolder {
     fn drop(&mut self) {
-        if self.status.status != FolderStatus::Running {
-            return;
+        if self.status.status == FolderStatus::Running {
+            self.mark_failed();
         }
+        release(&self.held);
+    }
+}
+
+impl RunFolder {
+    /// Marks the folder `failed` when it is dropped while running.
+    fn mark_failed(&mut self) {
         let panicking = std::thread::panicking();
         self.status.status = FolderStatus::Failed;
         self.status.error = Some(if panicking {
@@ -584,10 +861,7 @@ impl Drop for RunFolder {
         self.status.files = self.outputs.files();
         self.status.missing = self.outputs.missing.clone();
         if let Err(e) = self.write_status() {
-            eprintln!(
-                "error: output not written: {}: {e}",
-                self.path().join(STATUS_FILE).display()
-            );
+            self.say_stale(&e);
         }
     }
 }

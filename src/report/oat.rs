@@ -284,9 +284,10 @@ impl OatFiles {
         };
         let name = format!("oat_d{load:07.3}{suffix}.vtu");
         let path = self.out.join("vtu").join(&name);
-        let written = write_state_vtu(&path, case, built, u, fields, (load, note));
         // The series lists only the states that are there.
-        if files.record(&path, written) {
+        if files.write(&path, |p| {
+            write_state_vtu(p, case, built, u, fields, (load, note))
+        }) {
             self.pvd.push(PvdEntry {
                 time: load,
                 file: format!("vtu/{name}"),
@@ -330,10 +331,11 @@ impl OatFiles {
         }
         let mut summary = self.summary(case, built, solved, explicit, folder);
         let path = self.out.join("summary.json");
-        let written = serde_json::to_string_pretty(&summary)
-            .map_err(|e| io_err(&path, e))
-            .and_then(|text| std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e)));
-        folder.outputs_mut().record(&path, written);
+        let text = serde_json::to_string_pretty(&summary);
+        folder.outputs_mut().write(&path, |p| {
+            text.map_err(|e| io_err(&path, e))
+                .and_then(|text| std::fs::write(p, text + "\n").map_err(|e| io_err(&path, e)))
+        });
         summary.exit_status = folder.finish(&solved.status);
         summary.outputs_missing = folder.outputs().missing().to_vec();
         summary
@@ -359,21 +361,21 @@ impl OatFiles {
         }
         let out = self.out.clone();
         let path = out.join("oat.pvd");
-        let written = write_pvd(
-            &path,
-            &self.pvd,
-            &[
-                format!("ncform: {} ({})", case.title, case.source),
-                "time = clamp displacement [mm]; units: mm, N, MPa".into(),
-            ],
-        )
-        .map_err(|e| io_err(&path, e));
-        files.record(&path, written);
+        files.write(&path, |p| {
+            write_pvd(
+                p,
+                &self.pvd,
+                &[
+                    format!("ncform: {} ({})", case.title, case.source),
+                    "time = clamp displacement [mm]; units: mm, N, MPa".into(),
+                ],
+            )
+            .map_err(|e| io_err(&path, e))
+        });
         write_histories(case, &out, &self.history, status, case.solver_kind, files);
         if let Some(snap) = &self.contour {
             let path = out.join("contours.png");
-            let written = write_contours(built, &path, snap);
-            files.record(&path, written);
+            files.write(&path, |p| write_contours(built, p, snap));
         }
         self.seconds += start.elapsed().as_secs_f64();
     }
@@ -535,20 +537,21 @@ fn write_histories(
                 .collect(),
         ),
     };
-    let written = write_csv(
-        &path,
-        &preamble(match solver {
-            SolverKind::QuasiStatic => "clamp force vs clamp displacement (quasi-static)",
-            SolverKind::Explicit => "clamp force vs clamp displacement (explicit dynamics)",
-        }),
-        &header,
-        &rows,
-    )
-    .map_err(|e| io_err(&path, e));
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_csv(
+            p,
+            &preamble(match solver {
+                SolverKind::QuasiStatic => "clamp force vs clamp displacement (quasi-static)",
+                SolverKind::Explicit => "clamp force vs clamp displacement (explicit dynamics)",
+            }),
+            &header,
+            &rows,
+        )
+        .map_err(|e| io_err(&path, e))
+    });
     let path = out.join("mdz_strains.csv");
-    let written = write_csv(
-        &path,
+    files.write(&path, |p| write_csv(
+        p,
         &preamble("strains averaged over the main deformation zone (E22 = I8-1, gamma = I10, E_perp = I11-1)"),
         &["displacement [mm]", "E22 [-]", "shear_angle [deg]", "E_perp [-]"],
         &history
@@ -556,8 +559,7 @@ fn write_histories(
             .map(|h| vec![h.displacement, h.mdz_e22, h.mdz_shear_angle_deg, h.mdz_e_perp])
             .collect::<Vec<_>>(),
     )
-    .map_err(|e| io_err(&path, e));
-    files.record(&path, written);
+    .map_err(|e| io_err(&path, e)));
     let series = |label: &str, f: fn(&HistoryRow) -> f64| Series {
         label: label.to_string(),
         points: std::iter::once((0.0, 0.0))
@@ -566,45 +568,47 @@ fn write_histories(
     };
     let suffix = super::plot_suffix(status);
     let path = out.join("force_displacement.png");
-    let written = write_panels(
-        &path,
-        &[Panel {
-            title: format!("{}{suffix}", case.title),
-            x_label: "clamp displacement [mm]".into(),
-            y_label: "force [N]".into(),
-            series: vec![series("force", |h| h.force)],
-        }],
-        (1, 1),
-        (900, 650),
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_panels(
+            p,
+            &[Panel {
+                title: format!("{}{suffix}", case.title),
+                x_label: "clamp displacement [mm]".into(),
+                y_label: "force [N]".into(),
+                series: vec![series("force", |h| h.force)],
+            }],
+            (1, 1),
+            (900, 650),
+        )
+    });
     let path = out.join("mdz_strains.png");
-    let written = write_panels(
-        &path,
-        &[
-            Panel {
-                title: format!("MDZ E22{suffix}"),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "E22 = I8 - 1 [-]".into(),
-                series: vec![series("E22", |h| h.mdz_e22)],
-            },
-            Panel {
-                title: "MDZ shear angle".into(),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "shear angle [deg]".into(),
-                series: vec![series("gamma", |h| h.mdz_shear_angle_deg)],
-            },
-            Panel {
-                title: "MDZ E_perp".into(),
-                x_label: "clamp displacement [mm]".into(),
-                y_label: "E_perp = I11 - 1 [-]".into(),
-                series: vec![series("E_perp", |h| h.mdz_e_perp)],
-            },
-        ],
-        (1, 3),
-        (1800, 550),
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_panels(
+            p,
+            &[
+                Panel {
+                    title: format!("MDZ E22{suffix}"),
+                    x_label: "clamp displacement [mm]".into(),
+                    y_label: "E22 = I8 - 1 [-]".into(),
+                    series: vec![series("E22", |h| h.mdz_e22)],
+                },
+                Panel {
+                    title: "MDZ shear angle".into(),
+                    x_label: "clamp displacement [mm]".into(),
+                    y_label: "shear angle [deg]".into(),
+                    series: vec![series("gamma", |h| h.mdz_shear_angle_deg)],
+                },
+                Panel {
+                    title: "MDZ E_perp".into(),
+                    x_label: "clamp displacement [mm]".into(),
+                    y_label: "E_perp = I11 - 1 [-]".into(),
+                    series: vec![series("E_perp", |h| h.mdz_e_perp)],
+                },
+            ],
+            (1, 3),
+            (1800, 550),
+        )
+    });
 }
 
 /// `contours.png` at `path`.

@@ -110,6 +110,7 @@ macro_rules! say_raw {
 }
 
 fn main() -> ExitCode {
+    ignore_file_size_signal();
     // clap exits with 2 on a usage error (and 0 for --help, --version).
     let cli = Cli::parse();
     match run(cli) {
@@ -118,6 +119,18 @@ fn main() -> ExitCode {
             eprintln!("error: {message}");
             exit(ExitStatus::BadInput)
         }
+    }
+}
+
+/// A file-size limit (`ulimit -f`) makes a write that goes past it fail
+/// with EFBIG — an output not written, exit code 5 — instead of SIGXFSZ
+/// killing the process with `status.json` still saying `running`.
+fn ignore_file_size_signal() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN at start-up, before
+    // any other thread exists, installs no handler code.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }
 }
 

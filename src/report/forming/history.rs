@@ -103,8 +103,8 @@ pub(super) fn write_history(
         .collect();
     let path = out.join("history.csv");
     let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
-    let written = write_csv(
-        &path,
+    files.write(&path, |p| write_csv(
+        p,
         &[
             "ncform run: forming history (tools, boundary reactions, contact)".to_string(),
             format!("case: {} ({})", case.title, case.source),
@@ -115,8 +115,7 @@ pub(super) fn write_history(
         &header_refs,
         &rows,
     )
-    .map_err(|e| io_err(&path, e));
-    files.record(&path, written);
+    .map_err(|e| io_err(&path, e)));
     let panels = reaction_panels(case, built, history, status);
     if panels.is_empty() {
         return;
@@ -124,13 +123,14 @@ pub(super) fn write_history(
     let cols = panels.len().min(3);
     let rows = panels.len().div_ceil(cols);
     let path = out.join("reactions.png");
-    let written = write_panels(
-        &path,
-        &panels,
-        (rows, cols),
-        (600 * cols as u32, 500 * rows as u32),
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_panels(
+            p,
+            &panels,
+            (rows, cols),
+            (600 * cols as u32, 500 * rows as u32),
+        )
+    });
 }
 
 /// `energy.csv` and `energy.png` of an explicit run.
@@ -266,8 +266,9 @@ pub fn write_forming_history(
         comments.push(format!("zones: {}", zones.join("; ")));
     }
     comments.push("units: mm, N; angles in degrees".into());
-    let written = write_csv(&path, &comments, &header_refs, &data).map_err(|e| io_err(&path, e));
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_csv(p, &comments, &header_refs, &data).map_err(|e| io_err(&path, e))
+    });
 
     let panels = forming_panels(
         (case, built, readout),
@@ -278,13 +279,14 @@ pub fn write_forming_history(
     let cols = 2.min(panels.len());
     let grid = panels.len().div_ceil(cols);
     let path = out.join("forming.png");
-    let written = write_panels(
-        &path,
-        &panels,
-        (grid, cols),
-        (700 * cols as u32, 520 * grid as u32),
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_panels(
+            p,
+            &panels,
+            (grid, cols),
+            (700 * cols as u32, 520 * grid as u32),
+        )
+    });
 }
 
 /// The panels of `forming.png`: the stroke force, the floating tools'

@@ -75,8 +75,8 @@ pub fn write_outer_contours(
         .enumerate()
         .map(|(i, p)| format!("{} = \"{}\"", i + 1, p.name))
         .collect();
-    let written = write_csv(
-        &path,
+    files.write(&path, |p| write_csv(
+        p,
         &[
             "ncform run: outer contour of each ply, projected on the blank plane (z dropped), in order along the boundary".to_string(),
             format!("case: {} ({})", case.title, case.source),
@@ -87,8 +87,7 @@ pub fn write_outer_contours(
         &header_refs,
         &rows,
     )
-    .map_err(|e| io_err(&path, e));
-    files.record(&path, written);
+    .map_err(|e| io_err(&path, e)));
     let mut outlines = Vec::new();
     for (p, ply) in built.plies.iter().enumerate() {
         let name = if built.plies.len() > 1 {
@@ -109,13 +108,14 @@ pub fn write_outer_contours(
     }
     let incomplete = plot_suffix(status);
     let path = out.join("outer_contour.png");
-    let written = write_outlines_png(
-        &path,
-        &format!("outer contour, seen from above{incomplete}"),
-        &outlines,
-        900,
-    );
-    files.record(&path, written);
+    files.write(&path, |p| {
+        write_outlines_png(
+            p,
+            &format!("outer contour, seen from above{incomplete}"),
+            &outlines,
+            900,
+        )
+    });
 }
 
 /// `maps/<ply>_NNNN.png` (γ, E22, E⊥ of the formed ply),
@@ -197,8 +197,9 @@ pub fn write_maps(
                 range: None,
             })
             .collect();
-        let written = write_contour_png_viewed(path, &maps, (2100, 720), case.camera);
-        files.record(path, written);
+        files.write(path, |p| {
+            write_contour_png_viewed(p, &maps, (2100, 720), case.camera)
+        });
     }
     let mode_values: Vec<f64> = order.iter().map(|&e| f64::from(modes[e])).collect();
     let map = ContourMap {
@@ -209,6 +210,7 @@ pub fn write_maps(
         label: "mode: 0 none, 1 I11<1 I8≤1, 2 I11<1 I8>1, 3 I11≥1 I8>1, 4 I11≥1 I8≤1".into(),
         range: Some((0.0, 4.0)),
     };
-    let written = write_contour_png_viewed(paths.2, &[map], (900, 720), case.camera);
-    files.record(paths.2, written);
+    files.write(paths.2, |p| {
+        write_contour_png_viewed(p, &[map], (900, 720), case.camera)
+    });
 }

@@ -305,9 +305,8 @@ impl FormingFiles {
         for (t, tool) in built.tools.iter().enumerate() {
             let name = format!("tool-{}_{index:04}.vtu", file_stem(&tool.spec.name));
             let path = self.out.join("vtu").join(&name);
-            let written = write_tool_vtu(&path, case, tool, u[tool.dof], load);
             // The series lists only the states that are there.
-            if files.record(&path, written) {
+            if files.write(&path, |p| write_tool_vtu(p, case, tool, u[tool.dof], load)) {
                 self.pvd.push(PvdEntry {
                     time: load,
                     file: format!("vtu/{name}"),
@@ -396,10 +395,11 @@ impl FormingFiles {
         }
         let mut summary = self.summary(case, built, readout, solved, explicit, folder);
         let path = self.out.join("summary.json");
-        let written = serde_json::to_string_pretty(&summary)
-            .map_err(|e| io_err(&path, e))
-            .and_then(|text| std::fs::write(&path, text + "\n").map_err(|e| io_err(&path, e)));
-        folder.outputs_mut().record(&path, written);
+        let text = serde_json::to_string_pretty(&summary);
+        folder.outputs_mut().write(&path, |p| {
+            text.map_err(|e| io_err(&path, e))
+                .and_then(|text| std::fs::write(p, text + "\n").map_err(|e| io_err(&path, e)))
+        });
         summary.exit_status = folder.finish(&solved.status);
         summary.outputs_missing = folder.outputs().missing().to_vec();
         summary
@@ -419,16 +419,15 @@ impl FormingFiles {
             self.write_last_state((case, built, readout), files);
         }
         let path = out.join("forming.pvd");
-        let written = write_pvd(
-            &path,
+        files.write(&path, |p| write_pvd(
+            p,
             &self.pvd,
             &[
                 format!("ncform: {} ({})", case.title, case.source),
                 "time = programme fraction (0 to 1); parts: the plies, then the tools, then each ply projected on the blank plane (2D image-correlation view); units: mm, N, MPa".into(),
             ],
         )
-        .map_err(|e| io_err(&path, e));
-        files.record(&path, written);
+        .map_err(|e| io_err(&path, e)));
         write_history(case, built, out, &self.history, &solved.status, files);
         let stroke_label = readout.stroke_tool.map_or_else(
             || "programme fraction".to_string(),

@@ -222,7 +222,7 @@ pub(super) fn write_ply_state(
             "deformation_mode (to 0.1 %): 0 near the reference state, 1 I11<1 & I8<=1 (mixed-mode 1), 2 I11<1 & I8>1 (mixed-mode 2), 3 I11>=1 & I8>1, 4 I11>=1 & I8<=1 (docs/forming.md)".into(),
         ],
     };
-    let ply_written = files.record(path, write_vtu(path, &piece).map_err(|e| io_err(path, e)));
+    let ply_written = files.write(path, |p| write_vtu(p, &piece).map_err(|e| io_err(path, e)));
     let projected: Vec<[f64; 3]> = ply
         .mesh
         .nodes
@@ -248,10 +248,9 @@ pub(super) fn write_ply_state(
             dic_note.into(),
         ],
     };
-    let projection = files.record(
-        dic_path,
-        write_vtu(dic_path, &dic_piece).map_err(|e| io_err(dic_path, e)),
-    );
+    let projection = files.write(dic_path, |p| {
+        write_vtu(p, &dic_piece).map_err(|e| io_err(dic_path, e))
+    });
     write_maps(
         (case, built, p),
         u,
