@@ -191,6 +191,9 @@ pub fn partial_path(path: &Path) -> PathBuf {
 /// # Errors
 /// The error of `write` or of the rename, naming `path` (not the partial
 /// name).
+// A String error: it is the text the manifest records for the missing
+// output (`MissingOutput::error`), made from whatever error type the
+// writer has.
 pub fn write_whole<E: std::fmt::Display>(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), E>,
@@ -423,6 +426,8 @@ const STATUS_READS: usize = 50;
 /// Reads the status file `path`: `Ok(None)` when there is none, else the
 /// file, or what is wrong with it (unreadable, not JSON, not ncform's
 /// format).
+// A String error: it is the "what is wrong" part of
+// `FolderError::ForeignStatus`'s message.
 fn read_status(path: &Path) -> Result<Option<StatusFile>, String> {
     for attempt in 1..=STATUS_READS {
         let text = match std::fs::read_to_string(path) {
