@@ -79,7 +79,14 @@ impl<'f> FolderReport<'f> {
     }
 
     fn folder(&mut self) -> Option<&mut RunFolder> {
-        match &mut self.slot {
+        self.slot.folder()
+    }
+}
+
+impl Slot<'_> {
+    /// The folder, once prepared.
+    fn folder(&mut self) -> Option<&mut RunFolder> {
+        match self {
             Slot::Pending(_) => None,
             Slot::Owned(folder) => Some(folder),
             Slot::Borrowed(folder) => Some(folder),
@@ -102,9 +109,7 @@ impl Report for FolderReport<'_> {
         let out = out.unwrap_or_default();
         self.writer = Some(match built {
             Built::Oat { case, .. } => Writer::Oat(OatFiles::new(case, &out)),
-            Built::Forming { model, .. } => {
-                Writer::Forming(Box::new(FormingFiles::new(model, &out)))
-            }
+            Built::Forming { .. } => Writer::Forming(Box::new(FormingFiles::new(&out))),
         });
         Ok(())
     }
@@ -113,10 +118,8 @@ impl Report for FolderReport<'_> {
         let Some(writer) = &mut self.writer else {
             return;
         };
-        let folder = match &mut self.slot {
-            Slot::Pending(_) => return,
-            Slot::Owned(folder) => folder,
-            Slot::Borrowed(folder) => &mut **folder,
+        let Some(folder) = self.slot.folder() else {
+            return;
         };
         match (writer, built) {
             (Writer::Oat(w), Built::Oat { case, model }) => {
@@ -138,10 +141,8 @@ impl Report for FolderReport<'_> {
         let Some(writer) = &mut self.writer else {
             return;
         };
-        let folder = match &mut self.slot {
-            Slot::Pending(_) => return,
-            Slot::Owned(folder) => folder,
-            Slot::Borrowed(folder) => &mut **folder,
+        let Some(folder) = self.slot.folder() else {
+            return;
         };
         self.summary = match (writer, built) {
             (Writer::Oat(w), Built::Oat { case, model }) => Some(FolderSummary::Oat(Box::new(

@@ -192,9 +192,9 @@ struct StateLabel<'a> {
 }
 
 impl FormingFiles {
-    /// The writer of the outputs of `built` into the folder `out`
+    /// The writer of a forming run's outputs into the folder `out`
     /// (prepared, with `vtu/` and `maps/`).
-    pub fn new(_built: &FormingModel, out: &Path) -> Self {
+    pub fn new(out: &Path) -> Self {
         Self {
             out: out.to_path_buf(),
             history: Vec::new(),
