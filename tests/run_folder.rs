@@ -383,6 +383,92 @@ fn a_cancelled_run_is_written_and_marked_interrupted() {
     assert_manifest_is_the_folder(&out);
 }
 
+/// Every JSON and CSV file of the run folder `out` is free of `null`,
+/// `NaN` and infinities (docs/cases.md, "summary.json": a figure that does
+/// not apply or was never reached is left out; a value that cannot be
+/// computed is an empty CSV field).
+fn assert_no_null_or_non_finite(out: &Path) {
+    for (rel, _) in files_under(out) {
+        if !(rel.ends_with(".json") || rel.ends_with(".csv")) {
+            continue;
+        }
+        let text = fs::read_to_string(out.join(&rel)).unwrap();
+        let data: String = text
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .collect::<Vec<_>>()
+            .join("\n");
+        for token in ["null", "NaN", "nan", "inf", "not finite"] {
+            let found = data
+                .split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ' '))
+                .any(|word| word.split(' ').any(|w| w == token));
+            assert!(!found, "{}: {rel} holds {token:?}:\n{text}", out.display());
+        }
+        if rel.ends_with(".json") {
+            serde_json::from_str::<Value>(&text)
+                .unwrap_or_else(|e| panic!("{rel} is not JSON: {e}"));
+        }
+    }
+}
+
+/// Runs that end before any state beyond the start — a quasi-static OAT and
+/// forming run whose first step fails, explicit runs stopped before their
+/// first increment — write no `null` and no non-finite number: the figures
+/// they never computed (the explicit step range, say) are left out.
+#[test]
+fn runs_that_stop_at_once_write_no_null_and_no_non_finite_number() {
+    let dir = TempDir::new().unwrap();
+    // One Newton iteration per attempt and no cut-back below the first
+    // step: the first step fails.
+    let failing = "[solver]\nmax_iterations = 1\ninitial_increment = 1.0\nmin_increment = 0.9\n";
+    let case = oat(dir.path(), "fails.toml", &format!("{OAT}\n{failing}"));
+    let out = dir.path().join("out-fails");
+    let s = run_case(&case, &out, Progress::Quiet).unwrap();
+    assert!(
+        matches!(s.status, RunStatus::Incomplete { .. }),
+        "{:?}",
+        s.status
+    );
+    assert_no_null_or_non_finite(&out);
+    let cancel = CancelToken::new();
+    cancel.cancel();
+    let case = oat(dir.path(), "explicit.toml", &explicit_oat());
+    let out = dir.path().join("out-explicit");
+    let s = run_case_with(&case, &out, Progress::Quiet, &cancel).unwrap();
+    assert!(
+        matches!(s.status, RunStatus::Interrupted { .. }),
+        "{:?}",
+        s.status
+    );
+    assert_no_null_or_non_finite(&out);
+    let summary = summary(&out);
+    assert!(
+        summary["explicit"]["increments"].as_u64().is_some(),
+        "{summary}"
+    );
+    let mut forming = patch();
+    forming.solver.max_iterations = 1;
+    forming.solver.min_increment = forming.solver.initial_increment;
+    let out = dir.path().join("out-forming-fails");
+    let s = run_forming_with(&forming, &out, Progress::Quiet, &CancelToken::new()).unwrap();
+    assert!(
+        matches!(s.status, RunStatus::Incomplete { .. }),
+        "{:?}",
+        s.status
+    );
+    assert_no_null_or_non_finite(&out);
+    let mut forming = patch();
+    forming.solver_kind = ncform::case::SolverKind::Explicit;
+    let out = dir.path().join("out-forming-explicit");
+    let s = run_forming_with(&forming, &out, Progress::Quiet, &cancel).unwrap();
+    assert!(
+        matches!(s.status, RunStatus::Interrupted { .. }),
+        "{:?}",
+        s.status
+    );
+    assert_no_null_or_non_finite(&out);
+}
+
 // ---------------------------------------------------------------------------
 // The binary: signals and exit codes
 // ---------------------------------------------------------------------------

@@ -104,6 +104,7 @@ pub struct ExplicitSettings {
     /// Time-step control.
     pub time_step: TimeStepControl,
     /// Mass-scaling target step \[s\].
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub mass_scaling_time_step: Option<f64>,
     /// Roving mass scaling length `ℓ` \[mm\] (0: off; `docs/explicit.md`).
     pub roving_mass_length: f64,

@@ -91,11 +91,11 @@ fn oat_lines(
             s.steps, s.newton_iterations
         ),
         Some(e) => format!(
-            "explicit: {} increments, {:.1} M element-cycles/s on {} threads, max KE/IE {:.2} %, energy balance {:.1e}",
+            "explicit: {} increments, {:.1} M element-cycles/s on {} threads, max KE/IE {} %, energy balance {:.1e}",
             e.increments,
             e.element_cycles_per_second / 1e6,
             e.threads,
-            100.0 * e.max_kinetic_ratio,
+            percent(e.max_kinetic_ratio),
             e.max_relative_balance_error
         ),
     };
@@ -106,6 +106,18 @@ fn oat_lines(
         s.status.clone(),
         s.exit_status,
     )
+}
+
+/// `ratio` as a percentage with the digits that matter: two decimals up
+/// to 10⁴ %, three significant digits in exponent form above (a run far
+/// from quasi-static has a ratio of up to 10³⁰⁰).
+fn percent(ratio: f64) -> String {
+    let p = 100.0 * ratio;
+    if p.abs() < 1e4 {
+        format!("{p:.2}")
+    } else {
+        format!("{p:.2e}")
+    }
 }
 
 /// A forming run's work line, every tool's last force, the wall time, the
@@ -119,9 +131,9 @@ fn forming_lines(
             s.steps, s.newton_iterations, s.augmentations
         ),
         Some(e) => format!(
-            "explicit: {} increments, max KE/IE {:.2} %, energy balance {:.1e}",
+            "explicit: {} increments, max KE/IE {} %, energy balance {:.1e}",
             e.increments,
-            100.0 * e.max_kinetic_ratio,
+            percent(e.max_kinetic_ratio),
             e.max_relative_balance_error
         ),
     };

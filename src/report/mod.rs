@@ -22,6 +22,7 @@ pub mod energy;
 pub mod files;
 pub mod folder;
 pub mod forming;
+pub mod json;
 pub mod memory;
 pub mod oat;
 pub mod progress;

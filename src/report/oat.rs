@@ -68,6 +68,7 @@ pub struct RunSummary {
     /// Time split of the solve \[s\].
     pub timings: SolveTimings,
     /// The explicit run's figures (`null` for quasi-static).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub explicit: Option<ExplicitSummary>,
     /// Time writing outputs during and after the solve \[s\].
     pub output_seconds: f64,
@@ -94,8 +95,10 @@ pub struct ExplicitSummary {
     pub threads: usize,
     /// Estimated critical step at the start, before the safety factor \[s\].
     pub initial_critical_time_step: f64,
-    /// Smallest and largest step taken \[s\].
-    pub time_step_range: (f64, f64),
+    /// Smallest and largest step taken \[s\] (left out when the run took
+    /// no increment).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_step_range: Option<(f64, f64)>,
     /// Masses \[t\], with what mass scaling added.
     pub mass: MassSummary,
     /// Largest KE/IE from 10 % of the stroke on.
@@ -103,6 +106,7 @@ pub struct ExplicitSummary {
     /// Largest relative energy-balance error.
     pub max_relative_balance_error: f64,
     /// Energies at the last output [N·mm].
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub final_energies: Option<Energies>,
     /// Warnings (not quasi-static, …).
     pub warnings: Vec<String>,
@@ -120,6 +124,7 @@ pub struct MeshSummary {
     /// Tangent non-zeros (0 for explicit: no matrix).
     pub nonzeros: usize,
     /// Largest roving-to-edge angle \[deg\] (generated meshes).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub edge_deviation_deg: Option<f64>,
     /// Elements in the MDZ.
     pub mdz_elements: usize,
@@ -331,11 +336,7 @@ impl OatFiles {
         }
         let mut summary = self.summary(case, built, solved, explicit, folder);
         let path = self.out.join("summary.json");
-        let text = serde_json::to_string_pretty(&summary);
-        folder.outputs_mut().write(&path, |p| {
-            text.map_err(|e| io_err(&path, e))
-                .and_then(|text| std::fs::write(p, text + "\n").map_err(|e| io_err(&path, e)))
-        });
+        super::json::write_json(folder.outputs_mut(), &path, &summary);
         summary.exit_status = folder.finish(&solved.status);
         summary.outputs_missing = folder.outputs().missing().to_vec();
         summary
@@ -445,7 +446,7 @@ fn explicit_summary(case: &OatCase, result: &crate::solver::ExplicitResult) -> E
         element_cycles_per_second: result.element_cycles_per_second(),
         threads: result.threads,
         initial_critical_time_step: result.initial_critical_time_step,
-        time_step_range: result.time_step_range,
+        time_step_range: (result.increments > 0).then_some(result.time_step_range),
         mass: result.mass,
         max_kinetic_ratio: result.max_kinetic_ratio,
         max_relative_balance_error: result.max_relative_balance_error,

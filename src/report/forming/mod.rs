@@ -78,6 +78,7 @@ pub struct FormingSummary {
     /// Newton solves beyond the first per step, summed (augmentations).
     pub augmentations: usize,
     /// The explicit run's figures.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub explicit: Option<ExplicitFigures>,
     /// Time split of the solve \[s\].
     pub timings: SolveTimings,
@@ -102,6 +103,7 @@ pub struct FormingSummary {
 #[derive(Debug, Clone, Serialize)]
 pub struct FormingFigures {
     /// The tool whose displacement is the stroke.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub stroke_tool: Option<String>,
     /// The floating tools whose lift is reported.
     pub floating_tools: Vec<String>,
@@ -135,8 +137,10 @@ pub struct ExplicitFigures {
     pub duration: f64,
     /// Estimated critical step at the start \[s\].
     pub initial_critical_time_step: f64,
-    /// Smallest and largest step taken \[s\].
-    pub time_step_range: (f64, f64),
+    /// Smallest and largest step taken \[s\] (left out when the run took
+    /// no increment).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_step_range: Option<(f64, f64)>,
     /// Masses.
     pub mass: MassSummary,
     /// Largest KE/IE from 10 % of the programme on.
@@ -144,6 +148,7 @@ pub struct ExplicitFigures {
     /// Largest relative energy-balance error.
     pub max_relative_balance_error: f64,
     /// Energies at the last output [N·mm].
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub final_energies: Option<Energies>,
     /// Element cycles per second over the passes.
     pub element_cycles_per_second: f64,
@@ -395,11 +400,7 @@ impl FormingFiles {
         }
         let mut summary = self.summary(case, built, readout, solved, explicit, folder);
         let path = self.out.join("summary.json");
-        let text = serde_json::to_string_pretty(&summary);
-        folder.outputs_mut().write(&path, |p| {
-            text.map_err(|e| io_err(&path, e))
-                .and_then(|text| std::fs::write(p, text + "\n").map_err(|e| io_err(&path, e)))
-        });
+        crate::report::json::write_json(folder.outputs_mut(), &path, &summary);
         summary.exit_status = folder.finish(&solved.status);
         summary.outputs_missing = folder.outputs().missing().to_vec();
         summary
@@ -564,7 +565,7 @@ fn explicit_figures(result: &ExplicitResult, duration: f64) -> ExplicitFigures {
         increments: result.increments,
         duration,
         initial_critical_time_step: result.initial_critical_time_step,
-        time_step_range: result.time_step_range,
+        time_step_range: (result.increments > 0).then_some(result.time_step_range),
         mass: result.mass,
         max_kinetic_ratio: result.max_kinetic_ratio,
         max_relative_balance_error: result.max_relative_balance_error,
