@@ -384,13 +384,17 @@ impl Prepared<'_> {
     /// The run's estimate: the solver's work, a rough run time and the
     /// size of the outputs ([`super::estimate`]).
     pub fn estimate(&self) -> super::estimate::Estimate {
-        let (nodes, elements, plies, tools) = match &self.built {
-            PreparedModel::Oat(m) => (m.mesh.nodes.len(), m.mesh.triangles.len(), 0, 0),
-            PreparedModel::Forming(m, _) => (
+        let (nodes, elements, plies, tools, ply_contacts) = match (&self.built, self.case) {
+            (PreparedModel::Oat(m), _) => (m.mesh.nodes.len(), m.mesh.triangles.len(), 0, 0, 0),
+            (PreparedModel::Forming(m, _), case) => (
                 m.plies.iter().map(|p| p.mesh.nodes.len()).sum(),
                 m.plies.iter().map(|p| p.mesh.triangles.len()).sum(),
                 m.plies.len(),
                 m.tools.len(),
+                match case {
+                    Case::Forming(c) => c.ply_contacts.len(),
+                    Case::Oat(_) => 0,
+                },
             ),
         };
         super::estimate::Estimate::new(
@@ -401,6 +405,7 @@ impl Prepared<'_> {
                 elements,
                 plies,
                 tools,
+                ply_contacts,
                 terms: self.model.terms.len(),
             },
         )
