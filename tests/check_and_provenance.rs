@@ -390,3 +390,40 @@ fn maps_can_be_switched_off() {
             .unwrap();
     assert_eq!(resolved["case"]["output"]["maps"], false);
 }
+
+#[test]
+fn the_explicit_set_up_hints_name_the_keys_of_what_failed() {
+    use ncform::model::TermFailure;
+    use ncform::report::explicit_hint;
+    use ncform::solver::explicit::{ExplicitError, SetupError};
+    let term = |name: &str| {
+        ExplicitError::Term(TermFailure {
+            term: name.into(),
+            what: "node",
+            index: 0,
+            reason: "c·4m/Δt² overflows".into(),
+        })
+    };
+    let hint = |error: &ExplicitError, plies: &[&str]| explicit_hint(error, plies).unwrap();
+    let contact = hint(&term("contact with table"), &["ply"]);
+    assert!(
+        contact.contains("[contact] offset") && contact.contains("explicit_stiffness"),
+        "{contact}"
+    );
+    let ply = hint(&term("bending of upper"), &["lower", "upper"]);
+    assert!(
+        ply.contains("ply \"upper\"") && ply.contains("areal_mass"),
+        "{ply}"
+    );
+    let only = hint(&term("membrane"), &["blank"]);
+    assert!(only.contains("ply \"blank\""), "{only}");
+    let oat = hint(&term("membrane"), &[]);
+    assert!(oat.contains("[material] areal_mass"), "{oat}");
+    let coupling = ExplicitError::Setup(SetupError::MassCoupling {
+        node: 0,
+        reason: "a cycle".into(),
+    });
+    assert!(hint(&coupling, &["ply"]).contains("explicit.roving_mass_length"));
+    let massless = ExplicitError::Setup(SetupError::MasslessNode { node: 3 });
+    assert!(hint(&massless, &["ply"]).contains("[[boundary]]"));
+}
