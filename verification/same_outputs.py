@@ -13,7 +13,10 @@ file:
   the start and finish times; in `status.json` the byte count of the
   `summary.json` it lists, whose times vary in length);
 - every other file (CSV, VTU, PVD, PNG) byte for byte;
-- the exit codes, and stdout and stderr with times in seconds masked.
+- the exit codes, and stdout and stderr with times in seconds masked;
+- the files that only a newer head writes (`HEAD_ONLY`, listed by name:
+  `case.resolved.json`) are ignored when only the head has them, and left
+  out of the head's `status.json` manifest.
 
 Both binaries run each case into the same folder name (moved aside after
 the run), so that paths written into the outputs are the same.
@@ -59,6 +62,13 @@ MASKED_KEYS = {
 
 # Files whose content holds masked values, so that their size varies too.
 VARIABLE_SIZE = {"summary.json", "status.json"}
+
+# Files that only a newer head writes, listed one by one: ignored when they
+# are only in the head run, and dropped from the head's status.json
+# manifest. `case.resolved.json`: the resolved case and its provenance
+# (ncform version, git commit, hashes of the files read), new with the run
+# folder's provenance record; it names the commit, so it differs by design.
+HEAD_ONLY = {"case.resolved.json"}
 
 # Times in seconds and speeds on stdout/stderr ("2.85 s", "31.9 M
 # element-cycles/s").
@@ -228,12 +238,16 @@ def compare_folders(base: Path, head: Path) -> list[str]:
     fa = files(base) if base.exists() else set()
     fb = files(head) if head.exists() else set()
     problems = [f"{f}: only in the base run" for f in sorted(fa - fb)]
-    problems += [f"{f}: only in the head run" for f in sorted(fb - fa)]
+    problems += [f"{f}: only in the head run" for f in sorted(fb - fa) if f not in HEAD_ONLY]
     for rel in sorted(fa & fb):
         a, b = (base / rel).read_bytes(), (head / rel).read_bytes()
         if rel.endswith(".json"):
             try:
                 ja, jb = masked(json.loads(a)), masked(json.loads(b))
+                if rel == "status.json" and isinstance(jb, dict) and isinstance(jb.get("files"), list):
+                    jb["files"] = [f for f in jb["files"]
+                                   if not (isinstance(f, dict) and f.get("path") in HEAD_ONLY
+                                           and f.get("path") not in fa)]
             except json.JSONDecodeError as e:
                 if a != b:
                     problems.append(f"{rel}: not JSON ({e}) and different")

@@ -1,14 +1,16 @@
 //! `ncform run CASE [--out DIR] [--quiet]`: argument handling over the
 //! library's runner ([`crate::report::run`]) with a run-folder report
-//! ([`crate::report::FolderReport`]): progress on stderr, one summary line
-//! on stdout, what is not as asked on stderr, and the exit status
+//! ([`crate::report::FolderReport`]): the case prepared first (every
+//! set-up check before the folder is touched), its estimate on stderr
+//! (not with `--quiet`; a warning when the outputs would dwarf the solve
+//! always), progress on stderr, one summary line on stdout, what is not as asked on stderr, and the exit status
 //! (`docs/cases.md`, "Exit codes").
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::case::Case;
-use crate::report::{ExitStatus, FolderReport, FolderSummary, Progress, RunError, run};
+use crate::report::{ExitStatus, FolderReport, FolderSummary, Progress, Report, RunError, prepare};
 use crate::solver::{CancelToken, RunStatus};
 
 /// Why `ncform run` could not run: a case file that cannot be read, or a
@@ -55,7 +57,18 @@ pub fn run_command(
         (Case::Forming(_), false) => Progress::auto_programme(),
     };
     let mut report = FolderReport::new(&out);
-    run(&spec, &mut report, &mut progress, cancel)?;
+    // Every set-up check before the folder is touched; then the estimate.
+    let prepared = prepare(&spec).inspect_err(|e| report.fail(e))?;
+    let estimate = prepared.estimate();
+    if !quiet {
+        for line in estimate.lines() {
+            eprintln!("{line}");
+        }
+    }
+    if let Some(warning) = estimate.output_warning() {
+        eprintln!("warning: {warning}");
+    }
+    prepared.solve(&mut report, &mut progress, cancel)?;
     let Some(summary) = report.into_summary() else {
         return Ok(ExitStatus::BadInput);
     };

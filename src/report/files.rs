@@ -40,11 +40,12 @@ enum Writer {
     Forming(Box<FormingFiles>),
 }
 
-/// Writes a run into a run folder: prepared once the case is built (an
-/// earlier run moved aside, a foreign folder refused:
-/// [`RunFolder::prepare`]), the outputs as the states come, the summary
-/// and `status.json` at the end; a set-up error is written to
-/// `status.json` as `failed` when the folder was prepared.
+/// Writes a run into a run folder: prepared once the case is built and
+/// its solver set up (an earlier run moved aside, a foreign folder
+/// refused: [`RunFolder::prepare`]), the resolved case with its
+/// provenance (`case.resolved.json`) first, the outputs as the states
+/// come, the summary and `status.json` at the end; a set-up error is
+/// written to `status.json` as `failed` when the folder was prepared.
 pub struct FolderReport<'f> {
     slot: Slot<'f>,
     writer: Option<Writer>,
@@ -98,12 +99,18 @@ impl Report for FolderReport<'_> {
     fn begin(&mut self, built: &Built) -> Result<(), RunError> {
         let (source, title, subdirs): (&str, &str, &[&str]) = match built {
             Built::Oat { case, .. } => (&case.source, &case.title, &["vtu"]),
-            Built::Forming { case, .. } => (&case.source, &case.title, &["vtu", "maps"]),
+            Built::Forming { case, .. } if case.maps => {
+                (&case.source, &case.title, &["vtu", "maps"])
+            }
+            Built::Forming { case, .. } => (&case.source, &case.title, &["vtu"]),
         };
         if let Slot::Pending(out) = &self.slot {
             let folder =
                 RunFolder::prepare(out, source, title, subdirs).map_err(RunError::Folder)?;
             self.slot = Slot::Owned(Box::new(folder));
+        }
+        if let Some(folder) = self.folder() {
+            write_resolved_case(built, folder);
         }
         let out = self.folder().map(|f| f.path().to_path_buf());
         let out = out.unwrap_or_default();
@@ -167,6 +174,18 @@ impl Report for FolderReport<'_> {
             folder.fail(&error.to_string());
         }
     }
+}
+
+/// Writes the resolved case and its provenance
+/// ([`super::provenance::RESOLVED_CASE_FILE`]) into `folder`, recorded in
+/// its manifest like every output.
+fn write_resolved_case(built: &Built, folder: &mut RunFolder) {
+    let path = folder.path().join(super::provenance::RESOLVED_CASE_FILE);
+    let document = super::provenance::resolved_case_document_of(built);
+    folder.outputs_mut().write(&path, |p| {
+        let text = serde_json::to_string_pretty(&document).map_err(|e| e.to_string())?;
+        std::fs::write(p, text + "\n").map_err(|e| e.to_string())
+    });
 }
 
 /// Runs `case` into `report` and returns the summary it wrote.

@@ -1,8 +1,9 @@
 //! Running a case and reporting its results: the floor between the case
 //! files ([`crate::case`]) and the command line ([`crate::cli`]).
 //!
-//! One runner, [`run`], drives either solver once over a built case and
-//! hands every recorded state — a converged quasi-static step or an
+//! One runner, [`run`], prepares a case ([`prepare`]: built, and every
+//! check of its solver's set-up passed, before anything is written), then
+//! drives either solver once over it and hands every recorded state — a converged quasi-static step or an
 //! explicit output — to a [`Report`]. What a state becomes is the report's
 //! business:
 //!
@@ -19,6 +20,7 @@
 //! (`docs/architecture.md`).
 
 pub mod energy;
+pub mod estimate;
 pub mod files;
 pub mod folder;
 pub mod forming;
@@ -26,13 +28,17 @@ pub mod json;
 pub mod memory;
 pub mod oat;
 pub mod progress;
+pub mod provenance;
 pub mod rows;
 mod runner;
 
 pub use files::{FolderReport, FolderSummary};
 pub use folder::{ExitStatus, RunFolder};
 pub use progress::Progress;
-pub use runner::{Built, Outcome, Recorded, Report, RunError, SolveTimings, Solved, run};
+pub use runner::{
+    Built, Outcome, Prepared, Recorded, Report, RunError, SolveTimings, Solved, SolverEstimate,
+    explicit_hint, prepare, run,
+};
 
 use std::path::Path;
 

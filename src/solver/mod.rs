@@ -18,11 +18,12 @@ pub use assembly::Assembler;
 pub use cancel::CancelToken;
 pub use dofs::{Dirichlet, DofMap};
 pub use explicit::{
-    ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitState, solve_explicit,
+    ExplicitEstimate, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitSetUp,
+    ExplicitState, set_up_explicit, solve_explicit,
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
     NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings, Stabilisation,
-    StabilisationRecord, StepRecord, solve_quasi_static,
+    StabilisationRecord, StepRecord, check_quasi_static, solve_quasi_static,
 };
 pub use status::{RunStatus, Snapshot};

@@ -840,6 +840,29 @@ pub fn solve_quasi_static(
     Ok(run.wind_down(status))
 }
 
+/// The checks of [`solve_quasi_static`]'s set-up that need no matrix: the
+/// dof map and the state fit the model, and the linear solver asked for
+/// fits its tangent (LDLᵀ needs a symmetric one). What remains of the
+/// set-up (the symbolic factorisation) runs with the solve.
+///
+/// # Errors
+/// As [`solve_quasi_static`]'s set-up, but for the factorisation.
+pub fn check_quasi_static(
+    model: &Model,
+    dofs: &DofMap,
+    params: &NewtonParameters,
+    u: &[f64],
+) -> Result<(), QuasiStaticSetupError> {
+    if dofs.total != model.dofs() || u.len() != model.dofs() {
+        return Err(QuasiStaticSetupError::DofCount {
+            map: dofs.total,
+            state: u.len(),
+            model: model.dofs(),
+        });
+    }
+    choose_linear_solver(params.linear_solver, model.symmetric()).map(|_| ())
+}
+
 /// The factorisation asked for, or by default LDLᵀ for a symmetric
 /// tangent and LU otherwise; LDLᵀ asked for an unsymmetric one is refused.
 fn choose_linear_solver(

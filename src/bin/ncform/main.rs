@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use ncform::cli::check::check_command;
 use ncform::cli::run::run_command;
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
@@ -28,8 +29,10 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a case file (an off-axis tension test or a forming set-up) with
-    /// the quasi-static or the explicit solver; writes CSV, PNG, VTU/PVD,
-    /// a JSON summary and status.json (with the manifest). An earlier run
+    /// the quasi-static or the explicit solver; every set-up check runs
+    /// first and the estimate is printed (not with --quiet); writes CSV,
+    /// PNG, VTU/PVD, a JSON summary, status.json (with the manifest) and
+    /// case.resolved.json (the resolved case and its provenance). An earlier run
     /// in the output folder is moved aside to <out>.previous; SIGINT or
     /// SIGTERM stops at the next safe point and writes what was reached.
     /// Exit: 0 complete, 1 bad input, 2 usage, 3 incomplete, 4
@@ -43,6 +46,14 @@ enum Command {
         /// No progress output.
         #[arg(long)]
         quiet: bool,
+    },
+    /// Check a case file without running it (a dry run): read it, build it,
+    /// pass every set-up check of its solver, and print the estimated
+    /// increments or load steps, a rough run time and the size of the
+    /// outputs. Writes nothing. Exit: 0 ready to run, 1 bad input.
+    Check {
+        /// The case file (TOML), e.g. cases/oat45.toml.
+        case: PathBuf,
     },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
@@ -170,6 +181,10 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
         Command::Run { case, out, quiet } => {
             let status =
                 run_command(&case, out, quiet, &cancel_on_signals()).map_err(|e| e.to_string())?;
+            Ok(exit(status))
+        }
+        Command::Check { case } => {
+            let status = check_command(&case).map_err(|e| e.to_string())?;
             Ok(exit(status))
         }
         Command::Material { command } => match command {

@@ -83,6 +83,8 @@ pub struct FormingCase {
     pub ply_contacts: Vec<PlyContactSpec>,
     /// How the PNG maps look at the plies (`output.camera`).
     pub camera: MapView,
+    /// Whether the PNG maps of every output state are written (`output.maps`).
+    pub maps: bool,
     /// Gravity, if on.
     pub gravity: Option<GravitySpec>,
     /// Contact settings.
@@ -217,6 +219,7 @@ impl FormingCase {
         )?;
         let output::Outputs {
             camera,
+            maps,
             states,
             history_rows,
         } = output::output(&check, raw.output.as_ref())?;
@@ -234,6 +237,7 @@ impl FormingCase {
             zones,
             ply_contacts,
             camera,
+            maps,
             gravity,
             contact,
             solver_kind,

@@ -1,6 +1,6 @@
 //! The `[output]` table of a forming case: how many VTU states over the
-//! programme, how many history rows of an explicit run, and which side the
-//! PNG maps look at the plies from. Key-by-key documentation:
+//! programme, how many history rows of an explicit run, which side the
+//! PNG maps look at the plies from and whether they are drawn at all. Key-by-key documentation:
 //! `docs/cases.md`, "Forming cases".
 
 use super::raw::OutputRaw;
@@ -11,14 +11,16 @@ use crate::config::{ConfigError, TomlChecker};
 pub(super) struct Outputs {
     /// How the PNG maps look at the plies (`camera`).
     pub(super) camera: MapView,
+    /// Whether the PNG maps are written at every output state (`maps`).
+    pub(super) maps: bool,
     /// Number of VTU states besides `λ = 0` (`states`).
     pub(super) states: usize,
     /// History rows of an explicit run (`history`).
     pub(super) history_rows: usize,
 }
 
-/// The `[output]` table's camera, states and history rows, each with its
-/// default when left out.
+/// The `[output]` table's camera, maps switch, states and history rows,
+/// each with its default when left out.
 pub(super) fn output(check: &TomlChecker, raw: Option<&OutputRaw>) -> Result<Outputs, ConfigError> {
     let camera = match raw.and_then(|o| o.camera.as_ref()) {
         None => MapView::Below,
@@ -43,6 +45,7 @@ pub(super) fn output(check: &TomlChecker, raw: Option<&OutputRaw>) -> Result<Out
     };
     Ok(Outputs {
         camera,
+        maps: raw.and_then(|o| o.maps).unwrap_or(true),
         states,
         history_rows,
     })

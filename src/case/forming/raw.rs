@@ -182,4 +182,5 @@ pub(super) struct OutputRaw {
     pub(super) states: Option<Spanned<i64>>,
     pub(super) history: Option<Spanned<i64>>,
     pub(super) camera: Option<Spanned<String>>,
+    pub(super) maps: Option<bool>,
 }

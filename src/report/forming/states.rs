@@ -251,16 +251,18 @@ pub(super) fn write_ply_state(
     let projection = files.write(dic_path, |p| {
         write_vtu(p, &dic_piece).map_err(|e| io_err(dic_path, e))
     });
-    write_maps(
-        (case, built, p),
-        u,
-        &fields,
-        &dic,
-        &modes,
-        map_paths,
-        caption,
-        files,
-    );
+    if case.maps {
+        write_maps(
+            (case, built, p),
+            u,
+            &fields,
+            &dic,
+            &modes,
+            map_paths,
+            caption,
+            files,
+        );
+    }
     PlyState {
         areas: Some(crate::post::forming::mode_areas(&modes, &areas)),
         ply: ply_written,

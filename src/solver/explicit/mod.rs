@@ -287,7 +287,8 @@ impl Buffers {
 /// Integrates `model` from `state` over `[0, T]` with the prescribed dofs
 /// of `dofs` following `λ(t) = final_load · shape(t/T)`, calling `on_output`
 /// at each time of `output_times` (those in `(0, T]`, sorted; `T` is always
-/// one) with the record and the state.
+/// one) with the record and the state: [`set_up_explicit`] then
+/// [`ExplicitSetUp::solve`].
 ///
 /// # Errors
 /// Bad settings or a model that cannot start; a run that fails on the way is
@@ -303,6 +304,120 @@ pub fn solve_explicit(
     state: &mut ExplicitState,
     on_output: impl FnMut(&ExplicitRecord, &Snapshot) + Send,
 ) -> Result<ExplicitResult, ExplicitError> {
+    let set_up = set_up_explicit(model, dofs, params, final_load, output_times, state)?;
+    set_up.solve(model, params, state, on_output)
+}
+
+/// The set-up stage of an explicit run, done and checked: the settings,
+/// the system (masses, mass scaling, coupling chains), the terms set up
+/// for it, the first stable step with the increment estimate and the
+/// energies at `t = 0`, and the run's thread pool. Made by
+/// [`set_up_explicit`] before anything is written, integrated by
+/// [`ExplicitSetUp::solve`] on the same model and state.
+pub struct ExplicitSetUp {
+    pool: rayon::ThreadPool,
+    stage: SetUpStage,
+}
+
+/// What [`ExplicitSetUp::estimate`] tells of a run before it starts.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ExplicitEstimate {
+    /// The estimated critical step at the start, before the safety factor \[s\].
+    pub initial_critical_time_step: f64,
+    /// The first time step in use (the safety factor times the critical
+    /// step, or the fixed step) \[s\].
+    pub time_step: f64,
+    /// Duration of the run \[s\].
+    pub duration: f64,
+    /// Output times (history rows and states, `T` among them).
+    pub outputs: usize,
+    /// Estimated increments: `⌈duration / time_step⌉ + outputs` (one
+    /// landing step per output), the figure checked against
+    /// `max_increments`.
+    pub increments: f64,
+    /// Stencils of the model's largest term (triangles): one increment
+    /// costs this many element-cycles.
+    pub elements: usize,
+}
+
+impl ExplicitEstimate {
+    /// `increments × elements`: the element-cycles of the run.
+    pub fn element_cycles(&self) -> f64 {
+        self.increments * self.elements as f64
+    }
+}
+
+impl ExplicitSetUp {
+    /// The work the run is expected to take, from its first stable step.
+    pub fn estimate(&self) -> ExplicitEstimate {
+        let stage = &self.stage;
+        ExplicitEstimate {
+            initial_critical_time_step: stage.initial_critical,
+            time_step: stage.time_step,
+            duration: stage.duration,
+            outputs: stage.times.len(),
+            increments: (stage.duration / stage.time_step).ceil() + stage.times.len() as f64,
+            elements: stage.element_count,
+        }
+    }
+
+    /// The masses of the system (with mass scaling).
+    pub fn mass(&self) -> MassSummary {
+        self.stage.system.mass
+    }
+
+    /// Integrates the run set up by [`set_up_explicit`]: `model`, `state`
+    /// and `params` must be those it was set up with (the cancel token of
+    /// `params` may differ); `on_output` as for [`solve_explicit`].
+    ///
+    /// # Errors
+    /// A state whose size no longer matches the model
+    /// ([`ExplicitError::StateSize`]); a run that fails on the way is a
+    /// result, as for [`solve_explicit`].
+    pub fn solve(
+        self,
+        model: &mut Model,
+        params: &ExplicitParameters,
+        state: &mut ExplicitState,
+        mut on_output: impl FnMut(&ExplicitRecord, &Snapshot) + Send,
+    ) -> Result<ExplicitResult, ExplicitError> {
+        for given in [state.u.len(), state.v.len()] {
+            if given != model.dofs() {
+                return Err(ExplicitError::StateSize {
+                    expected: model.dofs(),
+                    given,
+                });
+            }
+        }
+        let Self { pool, stage } = self;
+        pool.install(|| {
+            let mut run = ExplicitRun::from_stage(stage, model, params, state);
+            let status = loop {
+                if let ControlFlow::Break(status) = run.increment(&mut on_output) {
+                    break status;
+                }
+            };
+            Ok(run.wind_down(status))
+        })
+    }
+}
+
+/// Sets an explicit run up (see [`ExplicitSetUp`]): checks the settings
+/// and the inputs, puts the prescribed dofs of `state` at `λ(0)`, builds
+/// the system and sets the terms of `model` up, takes the first stable
+/// step and refuses a run that would take more than
+/// `params.max_increments`.
+///
+/// # Errors
+/// Bad settings or a model that cannot start, as for [`solve_explicit`].
+pub fn set_up_explicit(
+    model: &mut Model,
+    dofs: &DofMap,
+    params: &ExplicitParameters,
+    final_load: f64,
+    output_times: &[f64],
+    state: &mut ExplicitState,
+) -> Result<ExplicitSetUp, ExplicitError> {
     params.validate()?;
     // The time loop runs on a worker of its own pool: its parallel passes
     // then start without waking a sleeping caller thread every pass.
@@ -310,17 +425,9 @@ pub fn solve_explicit(
         .num_threads(params.threads)
         .build()
         .map_err(|e| ExplicitError::Threads(e.to_string()))?;
-    pool.install(|| {
-        integrate(
-            model,
-            dofs,
-            params,
-            final_load,
-            output_times,
-            state,
-            on_output,
-        )
-    })
+    let stage =
+        pool.install(|| SetUpStage::new(model, dofs, params, final_load, output_times, state))?;
+    Ok(ExplicitSetUp { pool, stage })
 }
 
 /// The state of the terms at displacement `u`, load and programme
@@ -331,27 +438,6 @@ fn state_at(u: &[f64], (load, load_fraction): (f64, f64)) -> State<'_> {
         load_fraction,
         ..State::at(u)
     }
-}
-
-/// The body of [`solve_explicit`], inside its thread pool: the set-up
-/// stage, time increments until the last output (or a failure or a stop
-/// request), and the wind-down stage.
-fn integrate(
-    model: &mut Model,
-    dofs: &DofMap,
-    params: &ExplicitParameters,
-    final_load: f64,
-    output_times: &[f64],
-    state: &mut ExplicitState,
-    mut on_output: impl FnMut(&ExplicitRecord, &Snapshot),
-) -> Result<ExplicitResult, ExplicitError> {
-    let mut run = ExplicitRun::set_up(model, dofs, params, final_load, output_times, state)?;
-    let status = loop {
-        if let ControlFlow::Break(status) = run.increment(&mut on_output) {
-            break status;
-        }
-    };
-    Ok(run.wind_down(status))
 }
 
 /// `λ(t) = final_load · shape(t/T)`.
@@ -512,8 +598,8 @@ fn initial_energies(
     Ok(energies)
 }
 
-/// The working state of an explicit run: what [`ExplicitRun::set_up`]
-/// builds once, and the time loop's running values that
+/// The working state of an explicit run: what the set-up stage
+/// ([`SetUpStage`]) builds once, and the time loop's running values that
 /// [`ExplicitRun::increment`] advances.
 struct ExplicitRun<'a> {
     model: &'a mut Model,
@@ -567,17 +653,37 @@ struct ExplicitRun<'a> {
     warnings: Vec<String>,
 }
 
-impl<'a> ExplicitRun<'a> {
+/// What the set-up stage builds once, before the time loop: the owned
+/// part of an [`ExplicitRun`].
+struct SetUpStage {
+    final_load: f64,
+    duration: f64,
+    system: ExplicitSystem,
+    estimator: step::StepEstimator,
+    buffers: Buffers,
+    times: Vec<f64>,
+    safety: f64,
+    update_interval: usize,
+    initial_critical: f64,
+    element_count: usize,
+    energies: Energies,
+    timings: ExplicitTimings,
+    time_step: f64,
+    reaction: f64,
+    load: f64,
+}
+
+impl SetUpStage {
     /// Set-up stage: checks the inputs, puts the prescribed dofs at
     /// `λ(0)`, builds the system (masses, mass scaling), sets the terms
     /// up, and takes the first stable step and the energies at `t = 0`.
-    fn set_up(
-        model: &'a mut Model,
+    fn new(
+        model: &mut Model,
         dofs: &DofMap,
-        params: &'a ExplicitParameters,
+        params: &ExplicitParameters,
         final_load: f64,
         output_times: &[f64],
-        state: &'a mut ExplicitState,
+        state: &mut ExplicitState,
     ) -> Result<Self, ExplicitError> {
         let start = Instant::now();
         check_inputs(model, dofs, state)?;
@@ -589,7 +695,7 @@ impl<'a> ExplicitRun<'a> {
             TimeStepControl::Fixed { .. } => (1.0, usize::MAX),
         };
         let u = state.u.as_mut_slice();
-        let v = state.v.as_mut_slice();
+        let v = state.v.as_slice();
         // Every prescribed dof at λ(0) (fixed ones at zero), whatever the
         // initial state says.
         for c in &dofs.constrained {
@@ -611,7 +717,6 @@ impl<'a> ExplicitRun<'a> {
         )?;
         let (estimator, initial_critical) = step::StepEstimator::new(&system, model, &start_state)?;
         let time_step = first_time_step(params, safety, initial_critical, times.len())?;
-        let term_seconds = vec![0.0; model.terms.len()];
         let timings = ExplicitTimings {
             setup: start.elapsed().as_secs_f64(),
             ..Default::default()
@@ -631,8 +736,54 @@ impl<'a> ExplicitRun<'a> {
             &start_state,
             v,
         )?;
-        let load = load_at(params, final_load, 0.0);
         Ok(Self {
+            final_load,
+            duration: params.duration,
+            system,
+            estimator,
+            buffers,
+            times,
+            safety,
+            update_interval,
+            initial_critical,
+            element_count,
+            energies,
+            timings,
+            time_step,
+            reaction,
+            load: load_at(params, final_load, 0.0),
+        })
+    }
+}
+
+impl<'a> ExplicitRun<'a> {
+    /// The run from its set-up stage, on the model and state it was set
+    /// up with.
+    fn from_stage(
+        stage: SetUpStage,
+        model: &'a mut Model,
+        params: &'a ExplicitParameters,
+        state: &'a mut ExplicitState,
+    ) -> Self {
+        let SetUpStage {
+            final_load,
+            duration: _,
+            system,
+            estimator,
+            buffers,
+            times,
+            safety,
+            update_interval,
+            initial_critical,
+            element_count,
+            energies,
+            timings,
+            time_step,
+            reaction,
+            load,
+        } = stage;
+        let term_seconds = vec![0.0; model.terms.len()];
+        Self {
             initial_energy: energies.internal + energies.contact + energies.kinetic,
             initial_load_work: energies.load_work,
             initial_energies: energies,
@@ -656,8 +807,8 @@ impl<'a> ExplicitRun<'a> {
             model,
             params,
             final_load,
-            u,
-            v,
+            u: state.u.as_mut_slice(),
+            v: state.v.as_mut_slice(),
             system,
             estimator,
             buffers,
@@ -669,7 +820,7 @@ impl<'a> ExplicitRun<'a> {
             term_seconds,
             timings,
             time_step,
-        })
+        }
     }
 
     /// Step stage, one time increment: the node pass to the next time
