@@ -171,6 +171,29 @@ impl OatCase {
         crate::case::explicit::unused_explicit_table(&check, solver_kind, raw.explicit.as_ref());
         let explicit = ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, displacement)?;
         let density = tables::density(&check, raw.material.as_ref(), thickness, named_set)?;
+        if solver_kind == SolverKind::QuasiStatic
+            && let Some(m) = &raw.material
+        {
+            // Read for the one-line switch to the explicit solver, as the
+            // [explicit] table is, but not used by the quasi-static one.
+            for (key, given) in [
+                (
+                    "material.areal_mass",
+                    check.given("areal_mass", &m.areal_mass),
+                ),
+                ("material.density", check.given("density", &m.density)),
+            ] {
+                if let Some(g) = given {
+                    check.warn(
+                        g.line,
+                        key,
+                        g.value,
+                        String::new(),
+                        "the quasi-static solver does not use the mass (only the explicit one does)",
+                    );
+                }
+            }
+        }
         if solver_kind == SolverKind::Explicit && density.is_none() {
             return Err(check.missing(
                 "material.areal_mass",
