@@ -231,9 +231,9 @@ pub enum BuildError {
     },
     /// An OAT's mesh file is neither an Abaqus `.inp` nor a Gmsh `.msh`.
     #[error(
-        "{}: mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
-        at(.file, *.line),
-        .path.display()
+        "{file}: mesh.file = \"{}\"{}: expected an Abaqus .inp or a Gmsh .msh file",
+        .path.display(),
+        line_note(*.line)
     )]
     MeshFormat {
         /// The case file.
@@ -244,7 +244,7 @@ pub enum BuildError {
         path: PathBuf,
     },
     /// An OAT's mesh file cannot be read.
-    #[error("{}: mesh.file = \"{}\": {cause}", at(.file, *.line), .path.display())]
+    #[error("{file}: mesh.file = \"{}\"{}: {cause}", .path.display(), line_note(*.line))]
     MeshFile {
         /// The case file.
         file: String,
@@ -354,5 +354,15 @@ fn at(file: &str, line: usize) -> String {
         format!("{file}:{line}")
     } else {
         file.to_string()
+    }
+}
+
+/// The case line of a key placed after it, ` (line 12)` (empty when not
+/// known), for messages whose beginning `file: key = value` is fixed.
+fn line_note(line: usize) -> String {
+    if line > 0 {
+        format!(" (line {line})")
+    } else {
+        String::new()
     }
 }

@@ -145,6 +145,15 @@ fn vector3(
             "three finite numbers [x, y, z]",
         ));
     }
+    let x = Vector3::new(values[0], values[1], values[2]);
+    if !x.norm().is_finite() {
+        return Err(check.invalid(
+            check.line_of(v),
+            key,
+            shown,
+            "three numbers [x, y, z] whose length is finite",
+        ));
+    }
     if let Some(b) = bound
         && values.iter().any(|x| !b.hard.contains(*x))
     {
@@ -153,15 +162,6 @@ fn vector3(
             key,
             shown,
             &format!("three {}", b.expected()),
-        ));
-    }
-    let x = Vector3::new(values[0], values[1], values[2]);
-    if !x.norm().is_finite() {
-        return Err(check.invalid(
-            check.line_of(v),
-            key,
-            shown,
-            "three numbers [x, y, z] whose length is finite",
         ));
     }
     if unit {

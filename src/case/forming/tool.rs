@@ -768,6 +768,16 @@ fn floating(
             "the floating tool's mass [kg] (a floating tool needs a mass and a weight)",
         ));
     };
+    // An overflowing weight is the more telling reason (`mass = 1e308`).
+    let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
+    if t.weight.is_none() && !(given_mass.get_ref() * KG_IN_T * g.dot(&direction)).is_finite() {
+        return Err(check.invalid(
+            check.line_of(given_mass),
+            &key("mass"),
+            crate::config::readable_number(*given_mass.get_ref()),
+            "a mass whose weight (mass × gravity) is finite",
+        ));
+    }
     let mass = bound("tool.mass").spanned(check, given_mass, &key("mass"))? * KG_IN_T;
     let weight = match &t.weight {
         Some(w) => bound("tool.weight").spanned(check, w, &key("weight"))?,
