@@ -37,6 +37,20 @@ pub enum ConfigError {
         /// What was expected.
         expected: String,
     },
+    /// A file that a case key points to (a parameter file) cannot be
+    /// used: the case's line and key, then the file's own error.
+    Referenced {
+        /// The case file.
+        source: String,
+        /// 1-based line of the key in the case file (0 when not known).
+        line: usize,
+        /// Dotted key, e.g. `ply[0].params`.
+        key: String,
+        /// The value as written, e.g. `"fabric.toml"`.
+        value: String,
+        /// The referenced file's error (it names that file).
+        cause: Box<ConfigError>,
+    },
 }
 
 impl fmt::Display for ConfigError {
@@ -57,6 +71,19 @@ impl fmt::Display for ConfigError {
                     write!(f, "{source}:{line}: {key} = {value}: expected {expected}")
                 } else {
                     write!(f, "{source}: {key} = {value}: expected {expected}")
+                }
+            }
+            ConfigError::Referenced {
+                source,
+                line,
+                key,
+                value,
+                cause,
+            } => {
+                if *line > 0 {
+                    write!(f, "{source}:{line}: {key} = {value}: {cause}")
+                } else {
+                    write!(f, "{source}: {key} = {value}: {cause}")
                 }
             }
         }
@@ -106,16 +133,244 @@ fn shorten_numbers(message: &str, text: &str) -> String {
     out
 }
 
-/// Validation helper over one TOML text: turns spans into line numbers and
-/// builds [`ConfigError::Invalid`] messages.
+/// A value a case file may hold but that is unusual for a fabric or a
+/// forming set-up (a friction coefficient of 1.47, an areal mass that looks
+/// like g/m²): the run goes ahead and `ncform run` prints the warning to
+/// stderr before it starts. The usual ranges are those of
+/// [`crate::case::bounds::BOUNDS`] (`docs/cases.md`, "Ranges").
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseWarning {
+    /// The case (or parameter) file.
+    pub source: String,
+    /// 1-based line of the value (0 when not known).
+    pub line: usize,
+    /// Dotted key, e.g. `tool[1].friction`.
+    pub key: String,
+    /// The value as read.
+    pub value: String,
+    /// The usual range with its unit, e.g. `[0.05, 1]`; empty for a
+    /// warning that is not about a range (a table the solver does not
+    /// use).
+    pub usual: String,
+    /// A short hint at what was probably meant.
+    pub hint: String,
+}
+
+impl fmt::Display for CaseWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line > 0 {
+            write!(f, "{}:{}: ", self.source, self.line)?;
+        } else {
+            write!(f, "{}: ", self.source)?;
+        }
+        write!(f, "{} = {}: ", self.key, self.value)?;
+        if self.usual.is_empty() {
+            write!(f, "{}", self.hint)
+        } else {
+            write!(f, "outside the usual range {}; {}", self.usual, self.hint)
+        }
+    }
+}
+
+/// A key given in a table, as [`TomlChecker::only_keys`] checks it
+/// against the keys that apply.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenKey {
+    /// The key's name in its table (`width`).
+    pub name: &'static str,
+    /// 1-based line of its value (0 when not known).
+    pub line: usize,
+    /// The value as a message shows it.
+    pub value: String,
+}
+
+/// A value as a message shows it: numbers through [`readable_number`],
+/// strings quoted, lists in brackets.
+pub trait Shown {
+    /// The value as the case file would write it.
+    fn shown(&self) -> String;
+}
+
+impl Shown for f64 {
+    fn shown(&self) -> String {
+        readable_number(*self)
+    }
+}
+
+impl Shown for i64 {
+    fn shown(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl Shown for bool {
+    fn shown(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl Shown for String {
+    fn shown(&self) -> String {
+        format!("{self:?}")
+    }
+}
+
+impl<T: Shown> Shown for Vec<T> {
+    fn shown(&self) -> String {
+        format!(
+            "[{}]",
+            self.iter().map(Shown::shown).collect::<Vec<_>>().join(", ")
+        )
+    }
+}
+
+/// Validation helper over one TOML text: turns spans into line numbers,
+/// builds [`ConfigError::Invalid`] messages and collects the
+/// [`CaseWarning`]s of unusual values.
 pub struct TomlChecker<'a> {
     /// The file's text.
     pub text: &'a str,
     /// The file or set name.
     pub source: &'a str,
+    /// The warnings collected so far ([`TomlChecker::warn`]).
+    pub warnings: std::cell::RefCell<Vec<CaseWarning>>,
+}
+
+impl<'a> TomlChecker<'a> {
+    /// A checker of `text`, named `source` in messages, without warnings.
+    pub fn new(text: &'a str, source: &'a str) -> Self {
+        Self {
+            text,
+            source,
+            warnings: std::cell::RefCell::new(Vec::new()),
+        }
+    }
 }
 
 impl TomlChecker<'_> {
+    /// Records a warning about `key = value` at `line`: outside the
+    /// `usual` range, with a `hint`.
+    pub fn warn(&self, line: usize, key: &str, value: String, usual: String, hint: &str) {
+        self.warnings.borrow_mut().push(CaseWarning {
+            source: self.source.to_string(),
+            line,
+            key: key.to_string(),
+            value,
+            usual,
+            hint: hint.to_string(),
+        });
+    }
+
+    /// The warnings collected, emptying the list.
+    pub fn take_warnings(&self) -> Vec<CaseWarning> {
+        std::mem::take(&mut self.warnings.borrow_mut())
+    }
+
+    /// 1-based line of `key = …` in the table `[table]` of the text (0
+    /// when not found), for values deserialised without a span (the
+    /// `[solver]` knobs, the bending table). `table` is the dotted table
+    /// name as its header writes it (`solver`); an inline table
+    /// `name = { key = … }` is found by its `name` on a line of that
+    /// table.
+    pub fn line_of_key(&self, table: &str, key: &str) -> usize {
+        let mut current = String::new();
+        for (n, line) in self.text.lines().enumerate() {
+            let t = line.trim();
+            if let Some(header) = t.strip_prefix('[') {
+                current = header
+                    .trim_start_matches('[')
+                    .split(']')
+                    .next()
+                    .unwrap_or("")
+                    .trim()
+                    .to_string();
+                continue;
+            }
+            if current != table {
+                continue;
+            }
+            if let Some(rest) = t.strip_prefix(key)
+                && rest.trim_start().starts_with('=')
+            {
+                return n + 1;
+            }
+        }
+        0
+    }
+
+    /// The key `name` with its line and value when it is given.
+    pub fn given<T: Shown>(&self, name: &'static str, v: &Option<Spanned<T>>) -> Option<GivenKey> {
+        v.as_ref().map(|v| GivenKey {
+            name,
+            line: self.line_of(v),
+            value: v.get_ref().shown(),
+        })
+    }
+
+    /// Refuses the first of the `given` keys of `table` (`ply[0].mesh`)
+    /// that is not among `takes`, the keys that `what` (`shape
+    /// "rectangle"`) takes; the message lists them. `None` entries are keys
+    /// not given.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`].
+    pub fn only_keys(
+        &self,
+        table: &str,
+        given: &[Option<GivenKey>],
+        takes: &[&str],
+        what: &str,
+    ) -> Result<(), ConfigError> {
+        match given.iter().flatten().find(|g| !takes.contains(&g.name)) {
+            None => Ok(()),
+            Some(g) => Err(self.invalid(
+                g.line,
+                &format!("{table}.{}", g.name),
+                g.value.clone(),
+                &format!(
+                    "no {} for {what}, which takes only: {}",
+                    g.name,
+                    if takes.is_empty() {
+                        "(none of these keys)".to_string()
+                    } else {
+                        takes.join(", ")
+                    }
+                ),
+            )),
+        }
+    }
+
+    /// 1-based line of the header `[table]` (or `[[table]]`) in the text,
+    /// 0 when there is none.
+    pub fn line_of_header(&self, table: &str) -> usize {
+        self.text
+            .lines()
+            .position(|l| {
+                let t = l.trim().trim_start_matches('[');
+                t.strip_prefix(table)
+                    .is_some_and(|rest| rest.trim_start().starts_with(']'))
+            })
+            .map_or(0, |n| n + 1)
+    }
+
+    /// A [`ConfigError::Referenced`] for an error in a file that `key =
+    /// value` at `line` points to.
+    pub fn referenced(
+        &self,
+        line: usize,
+        key: &str,
+        value: &str,
+        cause: ConfigError,
+    ) -> ConfigError {
+        ConfigError::Referenced {
+            source: self.source.to_string(),
+            line,
+            key: key.to_string(),
+            value: value.to_string(),
+            cause: Box::new(cause),
+        }
+    }
+
     /// 1-based line of a spanned value.
     pub fn line_of<T>(&self, spanned: &Spanned<T>) -> usize {
         let start = spanned.span().start.min(self.text.len());
@@ -267,6 +522,17 @@ pub fn read_case_file(
         .unwrap_or(std::path::Path::new("."))
         .to_path_buf();
     Ok((text, path.display().to_string(), base))
+}
+
+/// `x` rounded to `digits` significant digits, for a computed value in a
+/// message (an enclosed volume of `-1000.0000000000001` mm³ reads `-1000`).
+pub fn significant(x: f64, digits: usize) -> f64 {
+    if !x.is_finite() || x == 0.0 {
+        return x;
+    }
+    format!("{x:.*e}", digits.saturating_sub(1))
+        .parse()
+        .unwrap_or(x)
 }
 
 /// A number as a reader wants it in a message: plain between 1e-4 and 1e15

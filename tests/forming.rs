@@ -382,12 +382,20 @@ fn bad_forming_cases_name_key_value_and_expectation() {
         "solid sheet\n facet normal 0 0 1\n  outer loop\n   vertex -60 -60 0\n   vertex 60 -60 0\n   vertex 60 60 0\n  endloop\n endfacet\nendsolid sheet\n",
     )
     .unwrap();
+    // (A mesh tool takes neither the plane's axis nor its drawn extent.)
     let text = edit(
         &base,
-        &[(
-            "name = \"table\"\nshape = \"plane\"",
-            "name = \"table\"\nshape = \"mesh\"\nfile = \"sheet.stl\"",
-        )],
+        &[
+            (
+                "name = \"table\"\nshape = \"plane\"",
+                "name = \"table\"\nshape = \"mesh\"\nfile = \"sheet.stl\"",
+            ),
+            (
+                "axis = [0.0, 0.0, 1.0]        # the free side (the ply) is above\n",
+                "",
+            ),
+            ("extent = 60.0\n", ""),
+        ],
     );
     let path = dir.path().join("case.toml");
     fs::write(&path, &text).unwrap();

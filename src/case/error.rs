@@ -35,10 +35,13 @@ pub enum ToolSurfaceError {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BuildError {
     /// A ply's mesh cannot be generated, given its fibres or checked.
-    #[error("{file}: ply \"{ply}\": [ply.mesh] {cause}")]
+    #[error("{}: ply \"{ply}\": [ply.mesh] {cause}", at(.file, *.line))]
     PlyMesh {
         /// The case file.
         file: String,
+        /// The line of the `[ply.mesh]` key the mesh comes from (`shape`
+        /// or `file`; 0 when not known).
+        line: usize,
         /// The ply's name.
         ply: String,
         /// What is wrong with the mesh.
@@ -46,10 +49,12 @@ pub enum BuildError {
         cause: Box<MeshError>,
     },
     /// A ply's mesh file cannot be read.
-    #[error("{file}: ply \"{ply}\": [ply.mesh] file = \"{}\": {cause}", .path.display())]
+    #[error("{}: ply \"{ply}\": [ply.mesh] file = \"{}\": {cause}", at(.file, *.line), .path.display())]
     PlyMeshFile {
         /// The case file.
         file: String,
+        /// The line of `file` in the case file.
+        line: usize,
         /// The ply's name.
         ply: String,
         /// The mesh file.
@@ -60,12 +65,15 @@ pub enum BuildError {
     },
     /// A ply's mesh file is neither an Abaqus `.inp` nor a Gmsh `.msh`.
     #[error(
-        "{file}: ply \"{ply}\": mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
+        "{}: ply \"{ply}\": mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
+        at(.file, *.line),
         .path.display()
     )]
     PlyMeshFormat {
         /// The case file.
         file: String,
+        /// The line of `file` in the case file.
+        line: usize,
         /// The ply's name.
         ply: String,
         /// The mesh file.
@@ -146,10 +154,12 @@ pub enum BuildError {
         cause: Box<MeshError>,
     },
     /// A tool's surface cannot be built.
-    #[error("{file}: tool \"{tool}\": {cause}")]
+    #[error("{}: tool \"{tool}\": {cause}", at(.file, *.line))]
     Tool {
         /// The case file.
         file: String,
+        /// The line of the tool's `file` (a mesh tool) or `shape`.
+        line: usize,
         /// The tool's name.
         tool: String,
         /// What is wrong with the surface.
@@ -159,7 +169,7 @@ pub enum BuildError {
     /// The contact penalty of a node of a ply against a tool is not a
     /// positive number.
     #[error(
-        "{file}: contact of ply \"{ply}\" with tool \"{tool}\": node {node}: penalty {penalty} N/mm: expected a positive stiffness (set contact.penalty)"
+        "{file}: contact of ply \"{ply}\" with tool \"{tool}\": node {node}: penalty {} N/mm: expected a positive stiffness (set contact.penalty)", readable_number(*.penalty)
     )]
     ContactPenalty {
         /// The case file.
@@ -221,20 +231,25 @@ pub enum BuildError {
     },
     /// An OAT's mesh file is neither an Abaqus `.inp` nor a Gmsh `.msh`.
     #[error(
-        "{file}: mesh.file = \"{}\": expected an Abaqus .inp or a Gmsh .msh file",
-        .path.display()
+        "{file}: mesh.file = \"{}\"{}: expected an Abaqus .inp or a Gmsh .msh file",
+        .path.display(),
+        line_note(*.line)
     )]
     MeshFormat {
         /// The case file.
         file: String,
+        /// The line of `mesh.file` in the case file.
+        line: usize,
         /// The mesh file.
         path: PathBuf,
     },
     /// An OAT's mesh file cannot be read.
-    #[error("{file}: mesh.file = \"{}\": {cause}", .path.display())]
+    #[error("{file}: mesh.file = \"{}\"{}: {cause}", .path.display(), line_note(*.line))]
     MeshFile {
         /// The case file.
         file: String,
+        /// The line of `mesh.file` in the case file.
+        line: usize,
         /// The mesh file.
         path: PathBuf,
         /// Why it cannot be read.
@@ -329,5 +344,25 @@ fn depth_text(depth: f64) -> String {
         format!("{depth:.4}")
     } else {
         readable_number(depth)
+    }
+}
+
+/// A place in the case file as messages write it: `case.toml:12`, or the
+/// file alone when the line is not known (0).
+fn at(file: &str, line: usize) -> String {
+    if line > 0 {
+        format!("{file}:{line}")
+    } else {
+        file.to_string()
+    }
+}
+
+/// The case line of a key placed after it, ` (line 12)` (empty when not
+/// known), for messages whose beginning `file: key = value` is fixed.
+fn line_note(line: usize) -> String {
+    if line > 0 {
+        format!(" (line {line})")
+    } else {
+        String::new()
     }
 }

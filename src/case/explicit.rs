@@ -5,6 +5,7 @@ use serde::de::{self, Deserializer, MapAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
+use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 use crate::element::RovingCoupling;
 use crate::solver::NewtonParameters;
@@ -155,19 +156,15 @@ impl ExplicitSettings {
             )?,
         };
         let time_step = time_step(raw, check)?;
+        let bounded = |v: &Spanned<f64>, key: &str| bound(key).spanned(check, v, key);
         let mass_scaling_time_step = raw
             .mass_scaling_time_step
             .as_ref()
-            .map(|v| positive(v, "explicit.mass_scaling_time_step", "a time step > 0 s"))
+            .map(|v| bounded(v, "explicit.mass_scaling_time_step"))
             .transpose()?;
         let roving_mass_length = match &raw.roving_mass_length {
             None => 0.0,
-            Some(v) => check.range(
-                v,
-                "explicit.roving_mass_length",
-                |x| (0.0..=MAX_ROVING_MASS_LENGTH).contains(&x),
-                &format!("a length in [0, {MAX_ROVING_MASS_LENGTH}] mm"),
-            )?,
+            Some(v) => bounded(v, "explicit.roving_mass_length")?,
         };
         let roving_mass_coupling = match &raw.roving_mass_coupling {
             None => RovingCoupling::Stretch,
@@ -182,7 +179,7 @@ impl ExplicitSettings {
         };
         let damping = match &raw.damping {
             None => 0.0,
-            Some(v) => check.range(v, "explicit.damping", |x| x >= 0.0, "a coefficient ≥ 0 1/s")?,
+            Some(v) => bounded(v, "explicit.damping")?,
         };
         if let (Some(v), true) = (&raw.damping, roving_mass_length > 0.0 && damping > 0.0) {
             return Err(check.invalid(
@@ -262,7 +259,6 @@ fn clamp_speed(
     check: &TomlChecker,
     displacement: f64,
 ) -> Result<f64, ConfigError> {
-    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
     let clamp_speed = match (&raw.clamp_speed, &raw.duration) {
         (Some(_), Some(d)) => {
             return Err(check.invalid(
@@ -272,8 +268,12 @@ fn clamp_speed(
                 "either explicit.clamp_speed or explicit.duration, not both",
             ));
         }
-        (Some(v), None) => positive(v, "explicit.clamp_speed", "a speed > 0 mm/s")?,
-        (None, Some(d)) => displacement / positive(d, "explicit.duration", "a duration > 0 s")?,
+        (Some(v), None) => {
+            check.range(v, "explicit.clamp_speed", |x| x > 0.0, "a speed > 0 mm/s")?
+        }
+        (None, Some(d)) => {
+            displacement / bound("explicit.duration").spanned(check, d, "explicit.duration")?
+        }
         (None, None) => DEFAULT_CLAMP_SPEED,
     };
     // Each value may be finite and the quotient not (1e-308 s for an
@@ -302,7 +302,6 @@ fn clamp_speed(
 /// `explicit.time_step` (fixed) or `explicit.safety_factor` and
 /// `explicit.time_step_update_interval` (stable), not both.
 fn time_step(raw: &ExplicitRaw, check: &TomlChecker) -> Result<TimeStepControl, ConfigError> {
-    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
     Ok(match (&raw.time_step, &raw.safety_factor) {
         (Some(dt), Some(_)) => {
             return Err(check.invalid(
@@ -313,7 +312,7 @@ fn time_step(raw: &ExplicitRaw, check: &TomlChecker) -> Result<TimeStepControl, 
             ));
         }
         (Some(dt), None) => TimeStepControl::Fixed {
-            time_step: positive(dt, "explicit.time_step", "a time step > 0 s")?,
+            time_step: bound("explicit.time_step").spanned(check, dt, "explicit.time_step")?,
         },
         (None, safety) => TimeStepControl::Stable {
             safety_factor: match safety {
@@ -362,15 +361,26 @@ pub(super) fn solver_choice(
     })
 }
 
-/// Checks the Newton knobs of a `[solver]` table.
-pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), ConfigError> {
-    let bad = |key: &str, value: String, expected: &str| ConfigError::Invalid {
-        source: source.to_string(),
-        line: 0,
-        key: format!("solver.{key}"),
-        value,
-        expected: expected.to_string(),
+/// Checks the Newton knobs of a `[solver]` table against their bounds
+/// ([`crate::case::bounds`]); the knobs carry no span, so their lines are
+/// looked up in the `[solver]` table's text.
+pub(super) fn validate_solver(
+    p: &NewtonParameters,
+    check: &TomlChecker,
+) -> Result<(), ConfigError> {
+    let line = |key: &str| check.line_of_key("solver", key);
+    let bad = |key: &str, value: String, expected: &str| {
+        check.invalid(line(key), &format!("solver.{key}"), value, expected)
     };
+    let bounded = |key: &str, v: f64| {
+        let full = format!("solver.{key}");
+        bound(&full).check(check, v, line(key), &full).map(|_| ())
+    };
+    bounded("initial_increment", p.initial_increment)?;
+    bounded("max_increment", p.max_increment)?;
+    bounded("min_increment", p.min_increment)?;
+    bounded("residual_tolerance", p.residual_tolerance)?;
+    bounded("energy_tolerance", p.energy_tolerance)?;
     let pos = |key: &str, v: f64| {
         if v.is_finite() && v > 0.0 {
             Ok(())
@@ -378,11 +388,6 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
             Err(bad(key, crate::config::readable_number(v), "a number > 0"))
         }
     };
-    pos("initial_increment", p.initial_increment)?;
-    pos("max_increment", p.max_increment)?;
-    pos("min_increment", p.min_increment)?;
-    pos("residual_tolerance", p.residual_tolerance)?;
-    pos("energy_tolerance", p.energy_tolerance)?;
     pos("force_floor", p.force_floor)?;
     if p.min_increment > p.max_increment {
         return Err(bad(
@@ -391,13 +396,7 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
             "at most max_increment",
         ));
     }
-    if !(p.growth >= 1.0 && p.growth.is_finite()) {
-        return Err(bad(
-            "growth",
-            crate::config::readable_number(p.growth),
-            "a factor ≥ 1",
-        ));
-    }
+    bounded("growth", p.growth)?;
     if !(p.cutback > 0.0 && p.cutback < 1.0) {
         return Err(bad(
             "cutback",
@@ -410,10 +409,10 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
     }
     pos("stabilisation_fraction", p.stabilisation_fraction)?;
     if let Some(t) = p.max_wall_seconds {
-        pos("max_wall_seconds", t)?;
+        bounded("max_wall_seconds", t)?;
     }
     if let Some(t) = p.inertia_duration {
-        pos("inertia_duration", t)?;
+        bounded("inertia_duration", t)?;
     }
     pos("stabilisation_limit", p.stabilisation_limit)?;
     if !(p.stabilisation_factor.is_finite() && p.stabilisation_factor >= 0.0) {
@@ -424,4 +423,24 @@ pub(super) fn validate_solver(p: &NewtonParameters, source: &str) -> Result<(), 
         ));
     }
     Ok(())
+}
+
+/// Warns about an `[explicit]` table in a case the quasi-static solver
+/// runs: the table is read and checked in every case, so that switching
+/// solvers is a one-line change (`docs/cases.md`), but none of it is used.
+pub(super) fn unused_explicit_table(
+    check: &TomlChecker,
+    kind: SolverKind,
+    raw: Option<&ExplicitRaw>,
+) {
+    if kind == SolverKind::QuasiStatic && raw.is_some() {
+        check.warn(
+            check.line_of_header("explicit"),
+            "[explicit]",
+            "(a table)".into(),
+            String::new(),
+            "the quasi-static solver runs this case and does not use the [explicit] table \
+             (it is checked, so that solver = \"explicit\" is a one-line change)",
+        );
+    }
 }

@@ -2,6 +2,7 @@
 //! off-axis tension test is; the solver sees a membrane and Dirichlet
 //! conditions. Field-by-field documentation: `docs/cases.md`.
 
+pub mod bounds;
 pub mod error;
 pub mod explicit;
 pub mod forming;

@@ -61,6 +61,15 @@ impl Case {
         }
     }
 
+    /// The case's warnings: unusual values (`docs/cases.md`, "Ranges")
+    /// and what it reads but does not use, in file order of the checks.
+    pub fn warnings(&self) -> &[crate::config::CaseWarning] {
+        match self {
+            Case::Oat(c) => &c.warnings,
+            Case::Forming(c) => &c.warnings,
+        }
+    }
+
     /// The solver that runs the case.
     pub fn solver_kind(&self) -> SolverKind {
         match self {

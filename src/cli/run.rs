@@ -50,6 +50,9 @@ pub fn run_command(
     cancel: &CancelToken,
 ) -> Result<ExitStatus, RunCommandError> {
     let spec = Case::load(case)?;
+    for w in spec.warnings() {
+        eprintln!("warning: {w}");
+    }
     let out = out.unwrap_or_else(|| default_out_dir(case));
     let mut progress = match (&spec, quiet) {
         (_, true) => Progress::Quiet,

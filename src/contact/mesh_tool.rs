@@ -136,7 +136,7 @@ pub enum MeshToolError {
         file: String,
     },
     /// A coordinate that is NaN or infinite (after scaling).
-    #[error("tool mesh {file}: {location}: non-finite coordinate {value}")]
+    #[error("tool mesh {file}: {location}: non-finite coordinate {}", readable_number(*.value))]
     NonFinite {
         /// The path as given.
         file: String,
@@ -181,7 +181,8 @@ pub enum MeshToolError {
     },
     /// A closed mesh whose normals point inwards.
     #[error(
-        "tool mesh {file} is closed but inside out (enclosed volume {volume:e} mm³ < 0); set flip_normals"
+        "tool mesh {file} is closed but inside out (enclosed volume {} mm³ < 0): its triangles run clockwise seen from outside (MeshOptions::flip_normals reverses them; a case's [[tool]] orients closed meshes itself)",
+        readable_number(*.volume)
     )]
     InsideOut {
         /// The path as given.

@@ -207,7 +207,9 @@ impl Placement {
                 value: [reference.x, reference.y, reference.z],
                 expected: format!(
                     "a direction not parallel to the axis ({}, {}, {})",
-                    z.x, z.y, z.z
+                    crate::config::readable_number(z.x),
+                    crate::config::readable_number(z.y),
+                    crate::config::readable_number(z.z)
                 ),
             });
         }
@@ -750,7 +752,10 @@ impl Torus {
                 shape: "torus",
                 parameter: "minor_radius",
                 value: minor_radius,
-                expected: format!("less than the major radius {major_radius} mm"),
+                expected: format!(
+                    "less than the major radius {} mm",
+                    crate::config::readable_number(major_radius)
+                ),
             });
         }
         Ok(Self {

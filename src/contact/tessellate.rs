@@ -280,7 +280,10 @@ impl Cylinder {
                 shape: "cylinder tessellation",
                 parameter: "z_max",
                 value: z_max,
-                expected: format!("a finite bound above z_min = {z_min} mm"),
+                expected: format!(
+                    "a finite bound above z_min = {} mm",
+                    crate::config::readable_number(z_min)
+                ),
             });
         }
         let segments = check_segments("cylinder tessellation", segments)?;
@@ -346,7 +349,7 @@ impl PlateWithHole {
                 value: outer_radius,
                 expected: format!(
                     "a finite radius beyond the fillet, R_o + r_f = {} mm",
-                    ro + rf
+                    crate::config::readable_number(ro + rf)
                 ),
             });
         }

@@ -294,7 +294,7 @@ impl MaterialSpec {
     /// physical range, each naming the source, key, value and allowed range.
     pub fn from_toml_str(text: &str, source: &str) -> Result<Self, ParamsError> {
         let raw: FileRaw = parse_toml(text, source)?;
-        let check = Checker { text, source };
+        let check = Checker::new(text, source);
         let law = raw
             .law
             .as_ref()

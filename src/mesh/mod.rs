@@ -193,7 +193,7 @@ pub enum MeshError {
         longest_edge: f64,
     },
     /// A global fibre direction (nearly) normal to an element.
-    #[error("{file}: element {element}: the fibre direction ({}, {}, {}) is (nearly) normal to the element; its in-plane projection has length {length:e} < 1e-6", .direction[0], .direction[1], .direction[2])]
+    #[error("{file}: element {element}: the fibre direction ({}, {}, {}) is (nearly) normal to the element; its in-plane projection has length {} < 1e-6", crate::config::readable_number(.direction[0]), crate::config::readable_number(.direction[1]), crate::config::readable_number(.direction[2]), crate::config::readable_number(*.length))]
     FibreNormalToElement {
         /// The mesh source.
         file: String,
@@ -268,9 +268,9 @@ impl Mesh {
                 return Err(invalid(format!(
                     "node {} has non-finite coordinates ({}, {}, {}); expected finite numbers",
                     self.node_label(n),
-                    x.x,
-                    x.y,
-                    x.z
+                    crate::config::readable_number(x.x),
+                    crate::config::readable_number(x.y),
+                    crate::config::readable_number(x.z)
                 )));
             }
         }
@@ -319,15 +319,21 @@ impl Mesh {
                 let norm = a.norm();
                 if norm.is_nan() || (norm - 1.0).abs() > FIBRE_TOLERANCE {
                     return Err(invalid(format!(
-                        "element {label}: fibre direction ({}, {}, {}) has length {norm}; expected a unit vector (±1e-9)",
-                        a.x, a.y, a.z
+                        "element {label}: fibre direction ({}, {}, {}) has length {}; expected a unit vector (±1e-9)",
+                        crate::config::readable_number(a.x),
+                        crate::config::readable_number(a.y),
+                        crate::config::readable_number(a.z),
+                        crate::config::readable_number(norm)
                     )));
                 }
                 let an = a.dot(&self.triangle_normal(e));
                 if an.is_nan() || an.abs() > FIBRE_TOLERANCE {
                     return Err(invalid(format!(
-                        "element {label}: fibre direction ({}, {}, {}) leaves the element plane (a·n = {an:e}); expected |a·n| <= 1e-9",
-                        a.x, a.y, a.z
+                        "element {label}: fibre direction ({}, {}, {}) leaves the element plane (a·n = {}); expected |a·n| <= 1e-9",
+                        crate::config::readable_number(a.x),
+                        crate::config::readable_number(a.y),
+                        crate::config::readable_number(a.z),
+                        crate::config::readable_number(an)
                     )));
                 }
             }
@@ -367,7 +373,9 @@ impl Mesh {
                 file: self.source.clone(),
                 what: format!(
                     "global fibre direction ({}, {}, {}) is invalid; expected a finite non-zero vector",
-                    direction.x, direction.y, direction.z
+                    crate::config::readable_number(direction.x),
+                    crate::config::readable_number(direction.y),
+                    crate::config::readable_number(direction.z)
                 ),
             });
         }

@@ -88,6 +88,7 @@ fn tool_surface(
 ) -> Result<(Arc<dyn RigidSurface>, Tessellation), BuildError> {
     let context = |e: ToolSurfaceError| BuildError::Tool {
         file: case.source.clone(),
+        line: spec.line,
         tool: spec.name.clone(),
         cause: e.into(),
     };
@@ -179,15 +180,25 @@ fn tool_surface(
             path,
             scale,
             closed,
+            flip_normals,
         } => {
-            let shape = MeshSurface::from_file(
-                path,
-                &MeshOptions {
-                    scale: *scale,
-                    require_closed: *closed,
-                    flip_normals: false,
-                },
-            )
+            let options = MeshOptions {
+                scale: *scale,
+                require_closed: *closed,
+                flip_normals: *flip_normals,
+            };
+            // A closed mesh is oriented outward by its enclosed volume,
+            // whatever the file's winding (the case's warnings say so).
+            let shape = match MeshSurface::from_file(path, &options) {
+                Err(crate::contact::MeshToolError::InsideOut { .. }) => MeshSurface::from_file(
+                    path,
+                    &MeshOptions {
+                        flip_normals: !options.flip_normals,
+                        ..options
+                    },
+                ),
+                other => other,
+            }
             .map_err(|x| context(x.into()))?;
             let drawing = shape.tessellation();
             let translation = Placement::translation(spec.origin).map_err(|x| context(x.into()))?;
@@ -243,6 +254,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
     let ply = &case.plies[p];
     let context = |e: MeshError| BuildError::PlyMesh {
         file: case.source.clone(),
+        line: ply.mesh_line,
         ply: ply.name.clone(),
         cause: e.into(),
     };
@@ -289,6 +301,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
                 _ => {
                     return Err(BuildError::PlyMeshFormat {
                         file: case.source.clone(),
+                        line: ply.mesh_line,
                         ply: ply.name.clone(),
                         path: path.clone(),
                     });
@@ -296,6 +309,7 @@ fn ply_mesh(case: &FormingCase, p: usize) -> Result<Mesh, BuildError> {
             }
             .map_err(|e| BuildError::PlyMeshFile {
                 file: case.source.clone(),
+                line: ply.mesh_line,
                 ply: ply.name.clone(),
                 path: path.clone(),
                 cause: e.into(),

@@ -10,6 +10,7 @@ use toml::Spanned;
 use super::ply::{PlySpec, ply_index};
 use super::raw::{BoundaryRaw, GravityRaw, LoadRaw, ProbeRaw, ZoneRaw};
 use super::{STANDARD_GRAVITY, amplitude, shown_list, vector3};
+use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 use crate::model::LoadAmplitude;
 
@@ -90,16 +91,11 @@ pub(super) fn gravity(
         Some(g) => {
             let magnitude = match &g.g {
                 None => STANDARD_GRAVITY,
-                Some(v) => check.range(
-                    v,
-                    "gravity.g",
-                    |x| x >= 0.0,
-                    "an acceleration ≥ 0 mm/s² (9810 on Earth)",
-                )?,
+                Some(v) => bound("gravity.g").spanned(check, v, "gravity.g")?,
             };
             let direction = match &g.direction {
                 None => -Vector3::z(),
-                Some(d) => vector3(check, d, "gravity.direction", true)?,
+                Some(d) => vector3(check, d, "gravity.direction", None)?,
             };
             Some(GravitySpec {
                 acceleration: magnitude * direction,
@@ -147,7 +143,12 @@ pub(super) fn boundaries(
         let displacement = match &b.displacement {
             None => [0.0; 3],
             Some(d) => {
-                let v = vector3(check, d, &key("displacement"), false)?;
+                let v = vector3(
+                    check,
+                    d,
+                    &key("displacement"),
+                    Some(bound("boundary.displacement")),
+                )?;
                 for k in 0..3 {
                     if v[k] != 0.0 {
                         fixed[k] = true;
@@ -193,7 +194,7 @@ pub(super) fn loads(
         loads.push(LoadSpec {
             ply: ply_index(check, plies, &l.ply, &key("ply"))?,
             nodes: l.nodes.get_ref().clone(),
-            force: vector3(check, &l.force, &key("force"), false)?,
+            force: vector3(check, &l.force, &key("force"), Some(bound("load.force")))?,
             amplitude: amplitude(check, &l.amplitude, &key("amplitude"), LoadAmplitude::Ramp)?,
             line: check.line_of(&l.nodes),
         });
@@ -228,23 +229,20 @@ pub(super) fn zones(
     let mut zones: Vec<ZoneSpec> = Vec::new();
     for (i, z) in raw.iter().enumerate() {
         let key = |k: &str| format!("zone[{i}].{k}");
-        let pair = |v: &Spanned<Vec<f64>>, k: &str, positive: bool| {
+        let pair = |v: &Spanned<Vec<f64>>, k: &str| {
             let values = v.get_ref();
-            let ok = values.len() == 2
-                && values
-                    .iter()
-                    .all(|x| x.is_finite() && (!positive || *x > 0.0));
-            if ok {
+            let b = bound(&format!("zone.{k}"));
+            if values.len() == 2 && values.iter().all(|x| b.hard.contains(*x)) {
                 Ok([values[0], values[1]])
             } else {
                 Err(check.invalid(
                     check.line_of(v),
                     &key(k),
                     shown_list(values),
-                    if positive {
-                        "two sizes > 0 mm [x, y]"
+                    &if k == "size" {
+                        b.expected()
                     } else {
-                        "two finite coordinates [x, y] in mm"
+                        format!("two {}", b.expected())
                     },
                 ))
             }
@@ -265,10 +263,10 @@ pub(super) fn zones(
             ply: ply_index(check, plies, &z.ply, &key("ply"))?,
             zone: crate::post::forming::Zone {
                 name,
-                centre: pair(&z.centre, "centre", false)?,
+                centre: pair(&z.centre, "centre")?,
                 size: match &z.size {
                     None => DEFAULT_ZONE_SIZE,
-                    Some(v) => pair(v, "size", true)?,
+                    Some(v) => pair(v, "size")?,
                 },
             },
         });

@@ -8,6 +8,7 @@ use toml::Spanned;
 
 use super::ply::{PlySpec, ply_index};
 use super::raw::{ContactRaw, PlyContactRaw};
+use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 use crate::contact::kernel::Smoothing;
 use crate::model::ExplicitPenalty;
@@ -129,20 +130,11 @@ pub(super) fn ply_contacts(
                 "a pair of plies no other [[ply_contact]] names",
             ));
         }
-        let friction = check.range(
-            &c.friction,
-            &key("friction"),
-            |x| x >= 0.0,
-            "a Coulomb coefficient ≥ 0",
-        )?;
+        let friction =
+            bound("ply_contact.friction").spanned(check, &c.friction, &key("friction"))?;
         let skin = match &c.skin {
             None => DEFAULT_PLY_CONTACT_SKIN,
-            Some(v) => check.range(
-                v,
-                &key("skin"),
-                |x| x > 0.0 && x <= 1.0e3,
-                "a distance in (0, 1000] mm",
-            )?,
+            Some(v) => bound("ply_contact.skin").spanned(check, v, &key("skin"))?,
         };
         ply_contacts.push(PlyContactSpec {
             plies: [a, b],
@@ -153,63 +145,92 @@ pub(super) fn ply_contacts(
     Ok(ply_contacts)
 }
 
+/// The `[contact]` keys only the quasi-static path reads (the augmented
+/// Lagrangian's) and those only the explicit path reads (its penalty and
+/// damping); `offset` is read by both.
+const QUASI_STATIC_KEYS: &[&str] = &[
+    "offset",
+    "penalty",
+    "penalty_scale",
+    "tangential_penalty_scale",
+    "normal_smoothing",
+    "friction_smoothing",
+    "gap_tolerance",
+    "multiplier_tolerance",
+];
+const EXPLICIT_KEYS: &[&str] = &[
+    "offset",
+    "explicit_stiffness",
+    "explicit_pressure_stiffness",
+    "explicit_damping",
+];
+
+/// Refuses a `[contact]` key the case's solver does not read, naming the
+/// keys it does.
+pub(super) fn applicable_keys(
+    check: &TomlChecker,
+    raw: Option<&ContactRaw>,
+    solver: crate::case::SolverKind,
+) -> Result<(), ConfigError> {
+    let Some(c) = raw else { return Ok(()) };
+    let given = [
+        check.given("offset", &c.offset),
+        check.given("penalty", &c.penalty),
+        check.given("penalty_scale", &c.penalty_scale),
+        check.given("tangential_penalty_scale", &c.tangential_penalty_scale),
+        check.given("normal_smoothing", &c.normal_smoothing),
+        check.given("friction_smoothing", &c.friction_smoothing),
+        check.given("gap_tolerance", &c.gap_tolerance),
+        check.given("multiplier_tolerance", &c.multiplier_tolerance),
+        check.given("explicit_stiffness", &c.explicit_stiffness),
+        check.given(
+            "explicit_pressure_stiffness",
+            &c.explicit_pressure_stiffness,
+        ),
+        check.given("explicit_damping", &c.explicit_damping),
+    ];
+    let (takes, what) = match solver {
+        crate::case::SolverKind::QuasiStatic => (QUASI_STATIC_KEYS, "the quasi-static solver"),
+        crate::case::SolverKind::Explicit => (EXPLICIT_KEYS, "the explicit solver"),
+    };
+    check.only_keys("contact", &given, takes, what)
+}
+
 /// The `[contact]` table: the defaults of [`ContactSettings`] with the
-/// keys given.
+/// keys given, each in its range ([`crate::case::bounds`]).
 pub(super) fn settings(
     check: &TomlChecker,
     raw: Option<&ContactRaw>,
 ) -> Result<ContactSettings, ConfigError> {
-    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
+    let bounded = |v: &Spanned<f64>, key: &str| bound(key).spanned(check, v, key);
     let mut contact = ContactSettings::default();
     if let Some(c) = raw {
         if let Some(v) = &c.offset {
-            contact.offset =
-                Some(check.range(v, "contact.offset", |x| x >= 0.0, "a distance ≥ 0 mm")?);
+            contact.offset = Some(bounded(v, "contact.offset")?);
         }
         if let Some(v) = &c.penalty {
-            contact.penalty = Some(positive(v, "contact.penalty", "a stiffness > 0 N/mm")?);
+            contact.penalty = Some(bounded(v, "contact.penalty")?);
         }
         if let Some(v) = &c.penalty_scale {
-            contact.penalty_scale = positive(v, "contact.penalty_scale", "a factor > 0")?;
+            contact.penalty_scale = bounded(v, "contact.penalty_scale")?;
         }
         if let Some(v) = &c.tangential_penalty_scale {
-            contact.tangential_penalty_scale = positive(
-                v,
-                "contact.tangential_penalty_scale",
-                "a ratio > 0 of the tangential to the normal penalty",
-            )?;
+            contact.tangential_penalty_scale = bounded(v, "contact.tangential_penalty_scale")?;
         }
         if let Some(v) = &c.normal_smoothing {
-            contact.smoothing.gap_width = check.range(
-                v,
-                "contact.normal_smoothing",
-                |x| x >= 0.0,
-                "a gap width ≥ 0 mm",
-            )?;
+            contact.smoothing.gap_width = bounded(v, "contact.normal_smoothing")?;
         }
         if let Some(v) = &c.friction_smoothing {
-            contact.smoothing.friction_width = check.range(
-                v,
-                "contact.friction_smoothing",
-                |x| (0.0..1.0).contains(&x),
-                "a fraction in [0, 1) of the friction limit",
-            )?;
+            contact.smoothing.friction_width = bounded(v, "contact.friction_smoothing")?;
         }
         if let Some(v) = &c.gap_tolerance {
-            contact.gap_tolerance =
-                Some(positive(v, "contact.gap_tolerance", "a distance > 0 mm")?);
+            contact.gap_tolerance = Some(bounded(v, "contact.gap_tolerance")?);
         }
         if let Some(v) = &c.multiplier_tolerance {
-            contact.multiplier_tolerance =
-                positive(v, "contact.multiplier_tolerance", "a fraction > 0")?;
+            contact.multiplier_tolerance = bounded(v, "contact.multiplier_tolerance")?;
         }
         if let Some(v) = &c.explicit_damping {
-            contact.explicit_damping = check.range(
-                v,
-                "contact.explicit_damping",
-                |x| (0.0..=1.0).contains(&x),
-                "a fraction in [0, 1] of the critical damping",
-            )?;
+            contact.explicit_damping = bounded(v, "contact.explicit_damping")?;
         }
         match (&c.explicit_stiffness, &c.explicit_pressure_stiffness) {
             (Some(_), Some(k)) => {
@@ -221,20 +242,11 @@ pub(super) fn settings(
                 ));
             }
             (Some(v), None) => {
-                contact.explicit_stiffness = check.range(
-                    v,
-                    "contact.explicit_stiffness",
-                    |x| x > 0.0 && x <= 1.0,
-                    "a fraction in (0, 1] of the stability limit",
-                )?;
+                contact.explicit_stiffness = bounded(v, "contact.explicit_stiffness")?;
             }
             (None, Some(k)) => {
-                contact.explicit_pressure_stiffness = Some(check.range(
-                    k,
-                    "contact.explicit_pressure_stiffness",
-                    |x| x > 0.0 && x <= 1.0e12,
-                    "a stiffness per unit area in (0, 1e12] N/mm³ (MPa per mm of penetration)",
-                )?);
+                contact.explicit_pressure_stiffness =
+                    Some(bounded(k, "contact.explicit_pressure_stiffness")?);
             }
             (None, None) => {}
         }

@@ -28,7 +28,7 @@ use toml::Spanned;
 use super::explicit::{
     ExplicitRaw, ExplicitSettings, SolverChoice, SolverKind, solver_choice, validate_solver,
 };
-use crate::config::{ConfigError, TomlChecker, parse_toml};
+use crate::config::{CaseWarning, ConfigError, TomlChecker, parse_toml};
 use crate::model::LoadAmplitude;
 use crate::solver::NewtonParameters;
 
@@ -104,6 +104,10 @@ pub struct FormingCase {
     /// give its duration. (The stroke reported on every state is the
     /// stroke tool's displacement: [`FormingModel::stroke`](crate::case::forming_model::FormingModel::stroke).)
     pub prescribed_travel: Option<f64>,
+    /// The unusual values of the case and what it reads but does not use
+    /// (`docs/cases.md`, "Ranges"), printed by `ncform run` before the
+    /// run.
+    pub warnings: Vec<CaseWarning>,
 }
 
 /// `true` when a case text describes a forming set-up (it has plies).
@@ -123,14 +127,16 @@ fn shown_list(values: &[f64]) -> String {
     )
 }
 
-/// A 3-vector key: three finite numbers, normalised when `unit` (then not
-/// zero).
+/// A 3-vector key: three finite numbers, each in `bound`'s hard range
+/// (a position, a displacement, a force), or a direction when `bound` is
+/// `None` (normalised, then not zero).
 fn vector3(
     check: &TomlChecker,
     v: &Spanned<Vec<f64>>,
     key: &str,
-    unit: bool,
+    bound: Option<&crate::case::bounds::Bound>,
 ) -> Result<Vector3<f64>, ConfigError> {
+    let unit = bound.is_none();
     let values = v.get_ref();
     let shown = shown_list(values);
     if values.len() != 3 || values.iter().any(|x| !x.is_finite()) {
@@ -148,6 +154,16 @@ fn vector3(
             key,
             shown,
             "three numbers [x, y, z] whose length is finite",
+        ));
+    }
+    if let Some(b) = bound
+        && values.iter().any(|x| !b.hard.contains(*x))
+    {
+        return Err(check.invalid(
+            check.line_of(v),
+            key,
+            shown,
+            &format!("three {}", b.expected()),
         ));
     }
     if unit {
@@ -190,7 +206,7 @@ impl FormingCase {
     /// node-set references — each naming the file, line, key and value.
     pub fn from_toml_str(text: &str, source: &str, base_dir: &Path) -> Result<Self, ConfigError> {
         let raw: FormingRaw = parse_toml(text, source)?;
-        let check = TomlChecker { text, source };
+        let check = TomlChecker::new(text, source);
         let plies = ply::plies(&check, &raw.ply, base_dir)?;
         let ply_contacts = contact::ply_contacts(&check, &raw.ply_contact, &plies)?;
         let gravity = conditions::gravity(&check, raw.gravity.as_ref())?;
@@ -217,6 +233,7 @@ impl FormingCase {
             &plies,
             travel,
         )?;
+        contact::applicable_keys(&check, raw.contact.as_ref(), solver_kind)?;
         let output::Outputs {
             camera,
             maps,
@@ -246,6 +263,7 @@ impl FormingCase {
             states: (1..=states).map(|k| k as f64 / states as f64).collect(),
             history_rows,
             prescribed_travel: travel,
+            warnings: check.take_warnings(),
         })
     }
 
@@ -290,7 +308,8 @@ fn solver_settings(
     travel: Option<f64>,
 ) -> Result<(SolverKind, NewtonParameters, ExplicitSettings), ConfigError> {
     let (solver_kind, solver) = solver_choice(choice, check)?;
-    validate_solver(&solver, check.source)?;
+    validate_solver(&solver, check)?;
+    super::explicit::unused_explicit_table(check, solver_kind, explicit_raw);
     if travel.is_none()
         && solver_kind == SolverKind::Explicit
         && explicit_raw.is_none_or(|e| e.duration.is_none())

@@ -11,6 +11,7 @@ use toml::Spanned;
 
 use super::raw::{BendingRaw, PlyMeshRaw, PlyRaw};
 use super::{shown_list, vector3};
+use crate::case::bounds::bound;
 use crate::case::explicit::{DEFAULT_AREAL_MASS, KG_PER_M2_IN_T_PER_MM2};
 use crate::config::{ConfigError, TomlChecker};
 use crate::material::MaterialSpec;
@@ -82,6 +83,9 @@ pub struct PlySpec {
     /// Bending stiffnesses `(B11, B22, B66)` [N·mm], `None` for a membrane
     /// without bending.
     pub bending: Option<[f64; 3]>,
+    /// Line of the `[ply.mesh]` key the mesh comes from (`file` or
+    /// `shape`) in the case file: errors of the mesh name it.
+    pub mesh_line: usize,
 }
 
 /// The paper's bending stiffnesses `(B11, B22)` [N·mm] (Section 3) and the
@@ -131,17 +135,20 @@ fn ply_spec(
     base_dir: &Path,
 ) -> Result<PlySpec, ConfigError> {
     let key = |k: &str| format!("ply[{i}].{k}");
-    let positive = |v: &Spanned<f64>, key: &str, what: &str| check.range(v, key, |x| x > 0.0, what);
-    let (material, named_set) = ply_material(check, &p.params, &key("params"), base_dir)?;
+    let bounded = |v: &Spanned<f64>, k: &str| bound(&format!("ply.{k}")).spanned(check, v, &key(k));
+    let (material, named_set) = match &p.params {
+        None => (MaterialSpec::default_set(), true),
+        Some(params) => (
+            crate::case::oat::load_params(check, params, &key("params"), base_dir)?,
+            MaterialSpec::named_text(params.get_ref()).is_some(),
+        ),
+    };
     let thickness = match &p.thickness {
         None => crate::case::oat::DEFAULT_THICKNESS,
-        Some(t) => positive(t, &key("thickness"), "a thickness > 0 mm")?,
+        Some(t) => bounded(t, "thickness")?,
     };
     let density = match &p.areal_mass {
-        Some(a) => Some(
-            positive(a, &key("areal_mass"), "an areal mass > 0 kg/m²")? * KG_PER_M2_IN_T_PER_MM2
-                / thickness,
-        ),
+        Some(a) => Some(bounded(a, "areal_mass")? * KG_PER_M2_IN_T_PER_MM2 / thickness),
         None if named_set => Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness),
         None => None,
     };
@@ -157,15 +164,15 @@ fn ply_spec(
     }
     let fibre_angle_deg = match &p.fibre_angle_deg {
         None => 0.0,
-        Some(a) => check.range(
-            a,
-            &key("fibre_angle_deg"),
-            |x| (-360.0..=360.0).contains(&x),
-            "an angle in [-360, 360] degrees",
-        )?,
+        Some(a) => bounded(a, "fibre_angle_deg")?,
     };
     let bending = bending(check, &p.bending, i)?;
     let mesh = ply_mesh(check, &p.mesh, i, base_dir)?;
+    let mesh_line = match (&p.mesh.file, &p.mesh.shape) {
+        (Some(f), _) => check.line_of(f),
+        (None, Some(s)) => check.line_of(s),
+        (None, None) => 0,
+    };
     Ok(PlySpec {
         name,
         mesh,
@@ -174,34 +181,7 @@ fn ply_spec(
         density,
         fibre_angle_deg,
         bending,
-    })
-}
-
-/// A ply's law: the default set, a named set, or a parameter file relative
-/// to `base_dir` (`key` = "ply[i].params"); `true` for a named set (which
-/// carries the default areal mass).
-fn ply_material(
-    check: &TomlChecker,
-    params: &Option<String>,
-    key: &str,
-    base_dir: &Path,
-) -> Result<(MaterialSpec, bool), ConfigError> {
-    let source = check.source;
-    Ok(match params {
-        None => (MaterialSpec::default_set(), true),
-        Some(name) if MaterialSpec::named_text(name).is_some() => (MaterialSpec::load(name)?, true),
-        Some(file) => (
-            MaterialSpec::load(&base_dir.join(file).display().to_string()).map_err(
-                |e| match e {
-                    ConfigError::NotFound { requested, reason } => ConfigError::NotFound {
-                        requested: format!("{source}: {key} = \"{file}\" ({requested})"),
-                        reason,
-                    },
-                    other => other,
-                },
-            )?,
-            false,
-        ),
+        mesh_line,
     })
 }
 
@@ -210,11 +190,13 @@ fn ply_material(
 /// values (each defaulting to the paper's).
 fn bending(
     check: &TomlChecker,
-    b: &Option<BendingRaw>,
+    b: &Option<Spanned<BendingRaw>>,
     i: usize,
 ) -> Result<Option<[f64; 3]>, ConfigError> {
     let key = |k: &str| format!("ply[{i}].{k}");
-    Ok(match b {
+    // The stiffnesses carry no span of their own: the line of `bending`.
+    let line = b.as_ref().map_or(0, |b| check.line_of(b));
+    Ok(match b.as_ref().map(Spanned::get_ref) {
         None => Some(PAPER_BENDING),
         Some(b) => match b {
             BendingRaw::Switch(false) => None,
@@ -222,13 +204,12 @@ fn bending(
             BendingRaw::Table(t) => {
                 let value = |v: &Option<f64>, k: &str, default: f64| match v {
                     None => Ok(default),
-                    Some(x) if x.is_finite() && *x >= 0.0 => Ok(*x),
-                    Some(x) => Err(check.invalid(
-                        0,
+                    Some(x) => bound(&format!("ply.bending.{k}")).check(
+                        check,
+                        *x,
+                        line,
                         &key(&format!("bending.{k}")),
-                        crate::config::readable_number(*x),
-                        "a bending stiffness ≥ 0 N·mm",
-                    )),
+                    ),
                 };
                 Some([
                     value(&t.b11, "b11", PAPER_BENDING[0])?,
@@ -269,30 +250,57 @@ pub(super) fn ply_index(
     }
 }
 
+/// The `[ply.mesh]` keys each source takes: every other key given is
+/// refused, naming these (`docs/cases.md`, "Keys that do not apply").
+const RECTANGLE_KEYS: &[&str] = &[
+    "shape",
+    "size",
+    "centre",
+    "element_size",
+    "cells",
+    "pattern",
+];
+const DISK_KEYS: &[&str] = &["shape", "radius", "centre", "element_size"];
+const STRIP_KEYS: &[&str] = &[
+    "shape",
+    "radius",
+    "wrap_angle_deg",
+    "tail_length",
+    "width",
+    "element_size",
+    "centre",
+];
+const FILE_KEYS: &[&str] = &["file"];
+
+/// A ply's `[ply.mesh]` table: a mesh file or a generated shape with the
+/// keys it takes.
 fn ply_mesh(
     check: &TomlChecker,
     m: &PlyMeshRaw,
     i: usize,
     base_dir: &Path,
 ) -> Result<PlyMesh, ConfigError> {
-    let key = |k: &str| format!("ply[{i}].mesh.{k}");
+    let table = format!("ply[{i}].mesh");
+    let key = |k: &str| format!("{table}.{k}");
     let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
         None => Err(check.missing(&key(k), what)),
-        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+        Some(v) => bound(&format!("ply.mesh.{k}")).spanned(check, v, &key(k)),
     };
-    let centre = match &m.centre {
-        None => Vector3::zeros(),
-        Some(c) => vector3(check, c, &key("centre"), false)?,
-    };
+    let given = [
+        check.given("shape", &m.shape),
+        check.given("size", &m.size),
+        check.given("centre", &m.centre),
+        check.given("element_size", &m.element_size),
+        check.given("cells", &m.cells),
+        check.given("pattern", &m.pattern),
+        check.given("radius", &m.radius),
+        check.given("width", &m.width),
+        check.given("wrap_angle_deg", &m.wrap_angle_deg),
+        check.given("tail_length", &m.tail_length),
+        check.given("file", &m.file),
+    ];
     if let Some(file) = &m.file {
-        if m.shape.is_some() {
-            return Err(check.invalid(
-                check.line_of(file),
-                &key("shape"),
-                "(given)".into(),
-                "no shape with a mesh file",
-            ));
-        }
+        check.only_keys(&table, &given, FILE_KEYS, "a mesh file")?;
         return Ok(PlyMesh::File {
             path: base_dir.join(file.get_ref()),
         });
@@ -318,6 +326,21 @@ fn ply_mesh(
             ("wrapped-strip", Kind::Strip),
         ],
     )?;
+    let takes = match kind {
+        Kind::Rectangle => RECTANGLE_KEYS,
+        Kind::Disk => DISK_KEYS,
+        Kind::Strip => STRIP_KEYS,
+    };
+    check.only_keys(
+        &table,
+        &given,
+        takes,
+        &format!("shape \"{}\"", shape.get_ref()),
+    )?;
+    let centre = match &m.centre {
+        None => Vector3::zeros(),
+        Some(c) => vector3(check, c, &key("centre"), Some(bound("ply.mesh.centre")))?,
+    };
     Ok(match kind {
         Kind::Rectangle => rectangle(check, m, i, centre)?,
         Kind::Disk => PlyMesh::Disk {
@@ -331,22 +354,14 @@ fn ply_mesh(
                 "radius",
                 "the radius of the strip's mid-surface > 0 mm",
             )?,
-            wrap_angle_deg: match &m.wrap_angle_deg {
-                None => {
-                    return Err(
-                        check.missing(&key("wrap_angle_deg"), "the wrap angle in (0, 360) degrees")
-                    );
-                }
-                Some(a) => check.range(
-                    a,
-                    &key("wrap_angle_deg"),
-                    |x| x > 0.0 && x < 360.0,
-                    "an angle in (0, 360) degrees",
-                )?,
-            },
+            wrap_angle_deg: positive(
+                &m.wrap_angle_deg,
+                "wrap_angle_deg",
+                "the wrap angle in (0, 360) degrees",
+            )?,
             tail_length: match &m.tail_length {
                 None => 0.0,
-                Some(t) => check.range(t, &key("tail_length"), |x| x >= 0.0, "a length ≥ 0 mm")?,
+                Some(t) => bound("ply.mesh.tail_length").spanned(check, t, &key("tail_length"))?,
             },
             width: positive(&m.width, "width", "a width > 0 mm")?,
             element_size: positive(&m.element_size, "element_size", "a length > 0 mm")?,
@@ -368,32 +383,31 @@ fn rectangle(
         None => return Err(check.missing(&key("size"), "the blank's extents [x, y] in mm")),
         Some(s) => {
             let v = s.get_ref();
-            if v.len() != 2 || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            let b = bound("ply.mesh.size");
+            if v.len() != 2 || v.iter().any(|x| !b.hard.contains(*x)) {
                 return Err(check.invalid(
                     check.line_of(s),
                     &key("size"),
                     shown_list(v),
-                    "two lengths > 0 mm [x, y]",
+                    &b.expected(),
                 ));
             }
             [v[0], v[1]]
         }
     };
     let resolution = match (&m.element_size, &m.cells) {
-        (Some(h), None) => crate::mesh::generate::GridResolution::ElementSize(check.range(
-            h,
-            &key("element_size"),
-            |x| x > 0.0,
-            "a length > 0 mm",
-        )?),
+        (Some(h), None) => crate::mesh::generate::GridResolution::ElementSize(
+            bound("ply.mesh.element_size").spanned(check, h, &key("element_size"))?,
+        ),
         (None, Some(c)) => {
             let v = c.get_ref();
-            if v.len() != 2 || v.iter().any(|n| !(1..=100_000).contains(n)) {
+            let b = bound("ply.mesh.cells");
+            if v.len() != 2 || v.iter().any(|n| !b.hard.contains(*n as f64)) {
                 return Err(check.invalid(
                     check.line_of(c),
                     &key("cells"),
                     format!("{v:?}"),
-                    "two counts in 1..=100000 [nx, ny]",
+                    &b.expected(),
                 ));
             }
             crate::mesh::generate::GridResolution::Counts {

@@ -36,11 +36,11 @@ pub(super) struct FormingRaw {
 #[serde(deny_unknown_fields)]
 pub(super) struct PlyRaw {
     pub(super) name: Option<String>,
-    pub(super) params: Option<String>,
+    pub(super) params: Option<Spanned<String>>,
     pub(super) thickness: Option<Spanned<f64>>,
     pub(super) areal_mass: Option<Spanned<f64>>,
     pub(super) fibre_angle_deg: Option<Spanned<f64>>,
-    pub(super) bending: Option<BendingRaw>,
+    pub(super) bending: Option<Spanned<BendingRaw>>,
     pub(super) mesh: PlyMeshRaw,
 }
 
@@ -99,7 +99,8 @@ pub(super) struct ToolRaw {
     pub(super) side: Option<Spanned<String>>,
     pub(super) file: Option<Spanned<String>>,
     pub(super) scale: Option<Spanned<f64>>,
-    pub(super) closed: Option<bool>,
+    pub(super) closed: Option<Spanned<bool>>,
+    pub(super) flip_normals: Option<Spanned<bool>>,
     pub(super) extent: Option<Spanned<f64>>,
     pub(super) friction: Option<Spanned<f64>>,
     pub(super) motion: Option<Spanned<String>>,

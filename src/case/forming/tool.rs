@@ -11,6 +11,7 @@ use toml::Spanned;
 
 use super::raw::ToolRaw;
 use super::{GravitySpec, KG_IN_T, STANDARD_GRAVITY, shown_list, vector3};
+use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 
 /// A tool's surface.
@@ -88,6 +89,9 @@ pub enum ToolShape {
         scale: f64,
         /// Require a closed, consistently oriented mesh.
         closed: bool,
+        /// Reverse every triangle: the free side of an open sheet is
+        /// then the other one (a closed mesh is oriented by its volume).
+        flip_normals: bool,
     },
 }
 
@@ -135,6 +139,9 @@ pub struct ToolSpec {
     pub motion: ToolMotion,
     /// Half-size of the drawn surface (planes, plates) \[mm\].
     pub extent: f64,
+    /// Line of the tool's `file` (a mesh tool) or `shape` in the case
+    /// file: errors of its surface name it.
+    pub line: usize,
 }
 
 /// Validates the `[[tool]]` tables in order, each with a name no other
@@ -320,7 +327,7 @@ fn tool_spec(
         axis,
         friction,
         extent,
-    } = frame(check, t, i, kind)?;
+    } = frame(check, t, i)?;
     let motion = tool_motion(check, t, i, gravity)?;
     Ok(ToolSpec {
         name,
@@ -331,6 +338,10 @@ fn tool_spec(
         friction,
         motion,
         extent,
+        line: t
+            .file
+            .as_ref()
+            .map_or(check.line_of(&t.shape), |f| check.line_of(f)),
     })
 }
 
@@ -344,7 +355,7 @@ fn tool_shape(
     let key = |k: &str| format!("tool[{i}].{k}");
     let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
         None => Err(check.missing(&key(k), what)),
-        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+        Some(v) => bound(&format!("tool.{k}")).spanned(check, v, &key(k)),
     };
     let kind = check.choice(
         &t.shape,
@@ -378,19 +389,70 @@ fn tool_shape(
         },
         Kind::Pyramid => pyramid_shape(check, t, i)?,
         Kind::PolygonPlate => polygon_plate_shape(check, t, i)?,
-        Kind::Mesh => ToolShape::Mesh {
-            path: match &t.file {
-                None => return Err(check.missing(&key("file"), "an STL or OBJ file")),
-                Some(f) => base_dir.join(f.get_ref()),
-            },
-            scale: match &t.scale {
-                None => 1.0,
-                Some(s) => check.range(s, &key("scale"), |x| x > 0.0, "a factor > 0 to mm")?,
-            },
-            closed: t.closed.unwrap_or(true),
-        },
+        Kind::Mesh => mesh_shape(check, t, i, base_dir)?,
     };
     Ok((kind, shape))
+}
+
+/// A `mesh` tool's keys: the file, its scale, whether it must be closed,
+/// and `flip_normals` (open sheets only). A closed mesh whose triangles
+/// run inside out is oriented outward by its enclosed volume when the
+/// model is built; that is recorded as a warning here (the file is read
+/// once more for it; an unreadable file is reported by the build).
+fn mesh_shape(
+    check: &TomlChecker,
+    t: &ToolRaw,
+    i: usize,
+    base_dir: &Path,
+) -> Result<ToolShape, ConfigError> {
+    let key = |k: &str| format!("tool[{i}].{k}");
+    let Some(file) = &t.file else {
+        return Err(check.missing(&key("file"), "an STL or OBJ file"));
+    };
+    let path = base_dir.join(file.get_ref());
+    let scale = match &t.scale {
+        None => 1.0,
+        Some(s) => bound("tool.scale").spanned(check, s, &key("scale"))?,
+    };
+    let closed = t.closed.as_ref().is_none_or(|c| *c.get_ref());
+    let flip_normals = t.flip_normals.as_ref().is_some_and(|f| *f.get_ref());
+    if let Some(f) = &t.flip_normals
+        && closed
+    {
+        return Err(check.invalid(
+            check.line_of(f),
+            &key("flip_normals"),
+            f.get_ref().to_string(),
+            "flip_normals only with closed = false (a closed mesh is oriented outward by its \
+             enclosed volume)",
+        ));
+    }
+    let options = crate::contact::MeshOptions {
+        scale,
+        require_closed: false,
+        flip_normals,
+    };
+    if let Err(crate::contact::MeshToolError::InsideOut { volume, .. }) =
+        crate::contact::MeshSurface::from_file(&path, &options)
+    {
+        check.warn(
+            check.line_of(file),
+            &key("file"),
+            format!("{:?}", file.get_ref()),
+            String::new(),
+            &format!(
+                "the closed mesh is inside out (enclosed volume {} mm³): its triangles are \
+                 reversed so that its normals point out of the tool",
+                crate::config::readable_number(crate::config::significant(volume, 6))
+            ),
+        );
+    }
+    Ok(ToolShape::Mesh {
+        path,
+        scale,
+        closed,
+        flip_normals,
+    })
 }
 
 /// A `pyramid`'s keys: sides, face angle, axis and base edge direction
@@ -399,31 +461,26 @@ fn pyramid_shape(check: &TomlChecker, t: &ToolRaw, i: usize) -> Result<ToolShape
     let key = |k: &str| format!("tool[{i}].{k}");
     let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
         None => Err(check.missing(&key(k), what)),
-        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+        Some(v) => bound(&format!("tool.{k}")).spanned(check, v, &key(k)),
     };
     let sides = match &t.sides {
         None => 3,
-        Some(n) => check.count(n, &key("sides"), 3..=64)?,
+        Some(n) => bound("tool.sides").count(check, n, &key("sides"))?,
     };
     let face_angle = match &t.face_angle_deg {
         // The regular tetrahedron: cos α = 1/3 (α ≈ 70.53°).
         None => (1.0_f64 / 3.0).acos(),
-        Some(a) => check
-            .range(
-                a,
-                &key("face_angle_deg"),
-                |x| x > 0.0 && x < 90.0,
-                "an angle in (0, 90) degrees between the faces and the base plane",
-            )?
+        Some(a) => bound("tool.face_angle_deg")
+            .spanned(check, a, &key("face_angle_deg"))?
             .to_radians(),
     };
     let axis = match &t.axis {
         None => Vector3::z(),
-        Some(a) => vector3(check, a, &key("axis"), true)?,
+        Some(a) => vector3(check, a, &key("axis"), None)?,
     };
     let edge_direction = match &t.edge_direction {
         None => Vector3::x(),
-        Some(e) => vector3(check, e, &key("edge_direction"), true)?,
+        Some(e) => vector3(check, e, &key("edge_direction"), None)?,
     };
     let projected = edge_direction - axis * edge_direction.dot(&axis);
     if projected.norm() <= 1e-6 {
@@ -467,7 +524,7 @@ fn polygon_plate_shape(
     let key = |k: &str| format!("tool[{i}].{k}");
     let positive = |v: &Option<Spanned<f64>>, k: &str, what: &str| match v {
         None => Err(check.missing(&key(k), what)),
-        Some(v) => check.range(v, &key(k), |x| x > 0.0, what),
+        Some(v) => bound(&format!("tool.{k}")).spanned(check, v, &key(k)),
     };
     Ok(ToolShape::PlateWithPolygonHole {
         punch: match &t.punch {
@@ -486,122 +543,129 @@ fn polygon_plate_shape(
                     "the clearance between the punch and the opening ≥ 0 mm",
                 ));
             }
-            Some(c) => check.range(
-                c,
-                &key("clearance"),
-                |x| x >= 0.0,
-                "a clearance ≥ 0 mm between the punch and the opening",
-            )?,
+            Some(c) => bound("tool.clearance").spanned(check, c, &key("clearance"))?,
         },
         fillet_radius: positive(&t.fillet_radius, "fillet_radius", "a radius > 0 mm")?,
         section_at: match &t.section_at {
             None => None,
-            Some(v) => Some(vector3(check, v, &key("section_at"), false)?),
+            Some(v) => Some(vector3(
+                check,
+                v,
+                &key("section_at"),
+                Some(bound("tool.section_at")),
+            )?),
         },
         polygon: Vec::new(),
         corner_radius: 0.0,
     })
 }
 
-/// Refuses a geometry key the tool's shape does not take.
-fn check_geometry_keys(
-    check: &TomlChecker,
-    t: &ToolRaw,
-    i: usize,
-    kind: Kind,
-) -> Result<(), ConfigError> {
-    let key = |k: &str| format!("tool[{i}].{k}");
-    let geometry_keys: [(&str, bool); 15] = [
-        ("radius", t.radius.is_some()),
-        ("major_radius", t.major_radius.is_some()),
-        ("minor_radius", t.minor_radius.is_some()),
-        ("opening_radius", t.opening_radius.is_some()),
-        ("fillet_radius", t.fillet_radius.is_some()),
-        ("sides", t.sides.is_some()),
-        ("face_angle_deg", t.face_angle_deg.is_some()),
-        ("rounding_radius", t.rounding_radius.is_some()),
-        ("height", t.height.is_some()),
-        ("edge_direction", t.edge_direction.is_some()),
-        ("punch", t.punch.is_some()),
-        ("clearance", t.clearance.is_some()),
-        ("section_at", t.section_at.is_some()),
-        ("file", t.file.is_some()),
-        ("scale", t.scale.is_some()),
-    ];
-    let needed: &[&str] = match kind {
-        Kind::Plane => &[],
-        Kind::Sphere | Kind::Cylinder => &["radius"],
-        Kind::Torus => &["major_radius", "minor_radius"],
-        Kind::Plate => &["opening_radius", "fillet_radius"],
+/// The keys of a `[[tool]]` table that depend on its shape, and those
+/// that depend on its motion; `name`, `shape`, `friction` and `motion` are
+/// taken by every tool. `docs/cases.md`, "Keys that do not apply".
+fn shape_keys(kind: Kind) -> &'static [&'static str] {
+    match kind {
+        Kind::Plane => &["origin", "axis", "extent"],
+        Kind::Sphere => &["origin", "radius", "side"],
+        Kind::Cylinder => &["origin", "axis", "radius", "side", "extent"],
+        Kind::Torus => &["origin", "axis", "major_radius", "minor_radius", "side"],
+        Kind::Plate => &[
+            "origin",
+            "axis",
+            "opening_radius",
+            "fillet_radius",
+            "extent",
+        ],
         Kind::Pyramid => &[
+            "origin",
+            "axis",
             "sides",
             "face_angle_deg",
             "rounding_radius",
             "height",
             "edge_direction",
         ],
-        Kind::PolygonPlate => &["punch", "clearance", "fillet_radius", "section_at"],
-        Kind::Mesh => &["file", "scale"],
-    };
-    if let Some((extra, _)) = geometry_keys
-        .iter()
-        .find(|(k, given)| *given && !needed.contains(k))
-    {
-        return Err(check.invalid(
-            check.line_of(&t.shape),
-            &key(extra),
-            "(given)".into(),
-            &format!("no {extra} for shape \"{}\"", t.shape.get_ref()),
-        ));
+        Kind::PolygonPlate => &[
+            "origin",
+            "axis",
+            "punch",
+            "clearance",
+            "fillet_radius",
+            "section_at",
+            "extent",
+        ],
+        Kind::Mesh => &["origin", "file", "scale", "closed", "flip_normals"],
     }
-    Ok(())
+}
+
+/// The keys each motion takes (`fixed`, `prescribed`, `floating`).
+const FIXED_KEYS: &[&str] = &[];
+const PRESCRIBED_KEYS: &[&str] = &["direction", "displacement"];
+const FLOATING_KEYS: &[&str] = &["direction", "mass", "weight"];
+
+/// Refuses a key the tool's shape does not take, naming those it does.
+fn check_geometry_keys(
+    check: &TomlChecker,
+    t: &ToolRaw,
+    i: usize,
+    kind: Kind,
+) -> Result<(), ConfigError> {
+    let given = [
+        check.given("origin", &t.origin),
+        check.given("axis", &t.axis),
+        check.given("radius", &t.radius),
+        check.given("major_radius", &t.major_radius),
+        check.given("minor_radius", &t.minor_radius),
+        check.given("opening_radius", &t.opening_radius),
+        check.given("fillet_radius", &t.fillet_radius),
+        check.given("sides", &t.sides),
+        check.given("face_angle_deg", &t.face_angle_deg),
+        check.given("rounding_radius", &t.rounding_radius),
+        check.given("height", &t.height),
+        check.given("edge_direction", &t.edge_direction),
+        check.given("punch", &t.punch),
+        check.given("clearance", &t.clearance),
+        check.given("section_at", &t.section_at),
+        check.given("side", &t.side),
+        check.given("file", &t.file),
+        check.given("scale", &t.scale),
+        check.given("closed", &t.closed),
+        check.given("flip_normals", &t.flip_normals),
+        check.given("extent", &t.extent),
+    ];
+    check.only_keys(
+        &format!("tool[{i}]"),
+        &given,
+        shape_keys(kind),
+        &format!("shape \"{}\"", t.shape.get_ref()),
+    )
 }
 
 /// A tool's side (spheres, cylinders and tori only), origin, axis,
 /// friction coefficient and drawn extent.
-fn frame(check: &TomlChecker, t: &ToolRaw, i: usize, kind: Kind) -> Result<Frame, ConfigError> {
+fn frame(check: &TomlChecker, t: &ToolRaw, i: usize) -> Result<Frame, ConfigError> {
     let key = |k: &str| format!("tool[{i}].{k}");
     let inside = match &t.side {
         None => false,
-        Some(s) => {
-            if !matches!(kind, Kind::Sphere | Kind::Cylinder | Kind::Torus) {
-                return Err(check.invalid(
-                    check.line_of(s),
-                    &key("side"),
-                    format!("\"{}\"", s.get_ref()),
-                    "no side for this shape (only spheres, cylinders and tori)",
-                ));
-            }
-            check.choice(s, &key("side"), &[("outside", false), ("inside", true)])?
-        }
+        Some(s) => check.choice(s, &key("side"), &[("outside", false), ("inside", true)])?,
     };
     let origin = match &t.origin {
         None => Vector3::zeros(),
-        Some(o) => vector3(check, o, &key("origin"), false)?,
+        Some(o) => vector3(check, o, &key("origin"), Some(bound("tool.origin")))?,
     };
     let axis = match &t.axis {
         None => Vector3::z(),
-        Some(a) => vector3(check, a, &key("axis"), true)?,
+        Some(a) => vector3(check, a, &key("axis"), None)?,
     };
     let friction = match &t.friction {
         None => 0.0,
-        Some(f) => check.range(
-            f,
-            &key("friction"),
-            |x| x >= 0.0,
-            "a friction coefficient ≥ 0",
-        )?,
+        Some(f) => bound("tool.friction").spanned(check, f, &key("friction"))?,
     };
     let extent = match &t.extent {
         None => 200.0,
         // Drawn only: a kilometre is far beyond any press, and keeps the
         // drawn points finite.
-        Some(e) => check.range(
-            e,
-            &key("extent"),
-            |x| x > 0.0 && x <= 1e6,
-            "a half-size in (0, 1e6] mm",
-        )?,
+        Some(e) => bound("tool.extent").spanned(check, e, &key("extent"))?,
     };
     Ok(Frame {
         inside,
@@ -644,39 +708,28 @@ fn tool_motion(
             &key("direction"),
             "the unit direction [x, y, z] the tool moves along",
         )),
-        Some(d) => vector3(check, d, &key("direction"), true),
+        Some(d) => vector3(check, d, &key("direction"), None),
     };
-    let unused = |v: &Option<Spanned<f64>>, k: &str, why: &str| match v {
-        Some(v) => Err(check.invalid(
-            check.line_of(v),
-            &key(k),
-            crate::config::readable_number(*v.get_ref()),
-            why,
-        )),
-        None => Ok(()),
+    let given = [
+        check.given("direction", &t.direction),
+        check.given("displacement", &t.displacement),
+        check.given("mass", &t.mass),
+        check.given("weight", &t.weight),
+    ];
+    let (takes, name) = match motion_kind {
+        Move::Fixed => (FIXED_KEYS, "fixed"),
+        Move::Prescribed => (PRESCRIBED_KEYS, "prescribed"),
+        Move::Floating => (FLOATING_KEYS, "floating"),
     };
+    check.only_keys(
+        &format!("tool[{i}]"),
+        &given,
+        takes,
+        &format!("motion \"{name}\""),
+    )?;
     let motion = match motion_kind {
-        Move::Fixed => {
-            unused(
-                &t.displacement,
-                "displacement",
-                "no displacement for a fixed tool (motion = \"prescribed\")",
-            )?;
-            unused(
-                &t.mass,
-                "mass",
-                "no mass for a fixed tool (motion = \"floating\")",
-            )?;
-            unused(
-                &t.weight,
-                "weight",
-                "no weight for a fixed tool (motion = \"floating\")",
-            )?;
-            ToolMotion::Fixed
-        }
+        Move::Fixed => ToolMotion::Fixed,
         Move::Prescribed => {
-            unused(&t.mass, "mass", "no mass for a prescribed tool")?;
-            unused(&t.weight, "weight", "no weight for a prescribed tool")?;
             let displacement = match &t.displacement {
                 None => {
                     return Err(check.missing(
@@ -684,12 +737,7 @@ fn tool_motion(
                         "the tool's displacement at the end of the programme [mm]",
                     ));
                 }
-                Some(d) => check.range(
-                    d,
-                    &key("displacement"),
-                    |_| true,
-                    "a finite displacement [mm]",
-                )?,
+                Some(d) => bound("tool.displacement").spanned(check, d, &key("displacement"))?,
             };
             ToolMotion::Prescribed {
                 direction: direction()?,
@@ -697,11 +745,6 @@ fn tool_motion(
             }
         }
         Move::Floating => {
-            unused(
-                &t.displacement,
-                "displacement",
-                "no displacement for a floating tool (it moves under its weight)",
-            )?;
             let direction = direction()?;
             floating(check, t, i, gravity, direction)?
         }
@@ -725,14 +768,19 @@ fn floating(
             "the floating tool's mass [kg] (a floating tool needs a mass and a weight)",
         ));
     };
-    let mass = check.range(given_mass, &key("mass"), |x| x > 0.0, "a mass > 0 kg")? * KG_IN_T;
+    // An overflowing weight is the more telling reason (`mass = 1e308`).
+    let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
+    if t.weight.is_none() && !(given_mass.get_ref() * KG_IN_T * g.dot(&direction)).is_finite() {
+        return Err(check.invalid(
+            check.line_of(given_mass),
+            &key("mass"),
+            crate::config::readable_number(*given_mass.get_ref()),
+            "a mass whose weight (mass × gravity) is finite",
+        ));
+    }
+    let mass = bound("tool.mass").spanned(check, given_mass, &key("mass"))? * KG_IN_T;
     let weight = match &t.weight {
-        Some(w) => check.range(
-            w,
-            &key("weight"),
-            |x| x >= 0.0,
-            "a dead force ≥ 0 N along the tool's direction",
-        )?,
+        Some(w) => bound("tool.weight").spanned(check, w, &key("weight"))?,
         None => {
             let g = gravity.map_or(-STANDARD_GRAVITY * Vector3::z(), |g| g.acceleration);
             let weight = mass * g.dot(&direction);

@@ -100,12 +100,14 @@ impl OatCase {
                     _ => {
                         return Err(BuildError::MeshFormat {
                             file: self.source.clone(),
+                            line: self.mesh_line,
                             path: path.clone(),
                         });
                     }
                 }
                 .map_err(|e| BuildError::MeshFile {
                     file: self.source.clone(),
+                    line: self.mesh_line,
                     path: path.clone(),
                     cause: e.into(),
                 })?;

@@ -14,7 +14,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::explicit::{ExplicitSettings, SolverKind, solver_choice, validate_solver};
-use crate::config::{ConfigError, TomlChecker, parse_toml};
+use crate::config::{CaseWarning, ConfigError, TomlChecker, parse_toml};
 use crate::material::MaterialSpec;
 use crate::mesh::Mesh;
 use crate::mesh::generate::{GridPattern, GridResolution};
@@ -26,6 +26,7 @@ mod raw;
 mod tables;
 
 pub use build::oat_clamps;
+pub(crate) use tables::load_params;
 
 use raw::CaseRaw;
 
@@ -92,6 +93,12 @@ pub struct OatCase {
     /// `material.density`, 0.30 kg/m² for the named sets, `None` for a
     /// parameter file without either (the quasi-static path needs none).
     pub density: Option<f64>,
+    /// Line of `mesh.file` in the case file (0 for a generated mesh):
+    /// errors of the mesh file name it.
+    pub mesh_line: usize,
+    /// The unusual values of the case (`docs/cases.md`, "Ranges"),
+    /// printed by `ncform run` before the run.
+    pub warnings: Vec<CaseWarning>,
 }
 
 /// The zones of the OAT: classic two-family reading of the paper's Section
@@ -146,7 +153,7 @@ impl OatCase {
     /// set — each naming the file, line, key and value.
     pub fn from_toml_str(text: &str, source: &str, base_dir: &Path) -> Result<Self, ConfigError> {
         let raw: CaseRaw = parse_toml(text, source)?;
-        let check = TomlChecker { text, source };
+        let check = TomlChecker::new(text, source);
         let (width, length, bias_angle_deg) = tables::specimen(&check, &raw.specimen)?;
         let mesh = tables::mesh(&check, &raw.mesh, base_dir)?;
         let (material, thickness, named_set) =
@@ -160,9 +167,33 @@ impl OatCase {
             &mut output_displacements,
         )?;
         let (solver_kind, solver) = solver_choice(raw.solver, &check)?;
-        validate_solver(&solver, source)?;
+        validate_solver(&solver, &check)?;
+        crate::case::explicit::unused_explicit_table(&check, solver_kind, raw.explicit.as_ref());
         let explicit = ExplicitSettings::from_raw(raw.explicit.as_ref(), &check, displacement)?;
         let density = tables::density(&check, raw.material.as_ref(), thickness, named_set)?;
+        if solver_kind == SolverKind::QuasiStatic
+            && let Some(m) = &raw.material
+        {
+            // Read for the one-line switch to the explicit solver, as the
+            // [explicit] table is, but not used by the quasi-static one.
+            for (key, given) in [
+                (
+                    "material.areal_mass",
+                    check.given("areal_mass", &m.areal_mass),
+                ),
+                ("material.density", check.given("density", &m.density)),
+            ] {
+                if let Some(g) = given {
+                    check.warn(
+                        g.line,
+                        key,
+                        g.value,
+                        String::new(),
+                        "the quasi-static solver does not use the mass (only the explicit one does)",
+                    );
+                }
+            }
+        }
         if solver_kind == SolverKind::Explicit && density.is_none() {
             return Err(check.missing(
                 "material.areal_mass",
@@ -189,6 +220,8 @@ impl OatCase {
             solver,
             explicit,
             density,
+            mesh_line: raw.mesh.file.as_ref().map_or(0, |f| check.line_of(f)),
+            warnings: check.take_warnings(),
         })
     }
 

@@ -43,7 +43,7 @@ pub(super) struct MeshRaw {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct MaterialRaw {
-    pub(super) params: Option<String>,
+    pub(super) params: Option<Spanned<String>>,
     pub(super) thickness: Option<Spanned<f64>>,
     pub(super) areal_mass: Option<Spanned<f64>>,
     pub(super) density: Option<Spanned<f64>>,

@@ -9,6 +9,7 @@ use toml::Spanned;
 
 use super::raw::{LoadingRaw, MaterialRaw, MeshRaw, OutputRaw, SpecimenRaw};
 use super::{DEFAULT_MDZ_SIZE, DEFAULT_THICKNESS, MeshSource};
+use crate::case::bounds::bound;
 use crate::case::explicit::{DEFAULT_AREAL_MASS, KG_PER_M2_IN_T_PER_MM2};
 use crate::config::{ConfigError, TomlChecker};
 use crate::material::MaterialSpec;
@@ -19,15 +20,12 @@ pub(super) fn specimen(
     check: &TomlChecker,
     raw: &SpecimenRaw,
 ) -> Result<(f64, f64, f64), ConfigError> {
-    let positive =
-        |v: &Spanned<f64>, key: &str| check.range(v, key, |x| x > 0.0, "a length > 0 mm");
-    let width = positive(&raw.width, "specimen.width")?;
-    let length = positive(&raw.length, "specimen.length")?;
-    let bias_angle_deg = check.range(
+    let width = bound("specimen.width").spanned(check, &raw.width, "specimen.width")?;
+    let length = bound("specimen.length").spanned(check, &raw.length, "specimen.length")?;
+    let bias_angle_deg = bound("specimen.bias_angle_deg").spanned(
+        check,
         &raw.bias_angle_deg,
         "specimen.bias_angle_deg",
-        |x| (-90.0..=90.0).contains(&x),
-        "an angle in [-90, 90] degrees",
     )?;
     Ok((width, length, bias_angle_deg))
 }
@@ -39,8 +37,7 @@ pub(super) fn mesh(
     m: &MeshRaw,
     base_dir: &Path,
 ) -> Result<MeshSource, ConfigError> {
-    let positive =
-        |v: &Spanned<f64>, key: &str| check.range(v, key, |x| x > 0.0, "a length > 0 mm");
+    let positive = |v: &Spanned<f64>, key: &str| bound(key).spanned(check, v, key);
     let pattern = match &m.pattern {
         None => GridPattern::RovingDiagonal,
         Some(p) => check.choice(
@@ -72,8 +69,8 @@ pub(super) fn mesh(
         },
         (None, None, Some(nx), Some(ny)) => MeshSource::Generated {
             resolution: GridResolution::Counts {
-                nx: check.count(nx, "mesh.nx", 1..=100_000)?,
-                ny: check.count(ny, "mesh.ny", 1..=100_000)?,
+                nx: bound("mesh.nx").count(check, nx, "mesh.nx")?,
+                ny: bound("mesh.ny").count(check, ny, "mesh.ny")?,
             },
             pattern,
         },
@@ -101,33 +98,18 @@ pub(super) fn material(
     raw: Option<&MaterialRaw>,
     base_dir: &Path,
 ) -> Result<(MaterialSpec, f64, bool), ConfigError> {
-    let source = check.source;
-    let positive =
-        |v: &Spanned<f64>, key: &str| check.range(v, key, |x| x > 0.0, "a length > 0 mm");
     let (params, thickness) = match raw {
         None => (None, None),
-        Some(mr) => (mr.params.clone(), mr.thickness.clone()),
+        Some(mr) => (mr.params.as_ref(), mr.thickness.as_ref()),
     };
-    let named_set = params
-        .as_ref()
-        .is_none_or(|p| MaterialSpec::named_text(p).is_some());
+    let named_set = params.is_none_or(|p| MaterialSpec::named_text(p.get_ref()).is_some());
     let material = match params {
         None => MaterialSpec::default_set(),
-        Some(p) if MaterialSpec::named_text(&p).is_some() => MaterialSpec::load(&p)?,
-        Some(p) => {
-            MaterialSpec::load(&base_dir.join(&p).display().to_string()).map_err(|e| match e {
-                // Say which case key asked for the missing set or file.
-                ConfigError::NotFound { requested, reason } => ConfigError::NotFound {
-                    requested: format!("{source}: material.params = \"{p}\" ({requested})"),
-                    reason,
-                },
-                other => other,
-            })?
-        }
+        Some(p) => load_params(check, p, "material.params", base_dir)?,
     };
     let thickness = match thickness {
         None => DEFAULT_THICKNESS,
-        Some(t) => positive(&t, "material.thickness")?,
+        Some(t) => bound("material.thickness").spanned(check, t, "material.thickness")?,
     };
     Ok((material, thickness, named_set))
 }
@@ -185,8 +167,7 @@ pub(super) fn output(
     displacement: f64,
     output_displacements: &mut Vec<f64>,
 ) -> Result<(f64, f64), ConfigError> {
-    let positive =
-        |v: &Spanned<f64>, key: &str| check.range(v, key, |x| x > 0.0, "a length > 0 mm");
+    let positive = |v: &Spanned<f64>, key: &str| bound(key).spanned(check, v, key);
     let (mdz_size, contour_displacement) = match raw {
         None => (DEFAULT_MDZ_SIZE, displacement),
         Some(o) => (
@@ -233,20 +214,11 @@ pub(super) fn density(
             ));
         }
         (Some(a), None) => Some(
-            check.range(
-                a,
-                "material.areal_mass",
-                |x| x > 0.0,
-                "an areal mass > 0 kg/m²",
-            )? * KG_PER_M2_IN_T_PER_MM2
+            bound("material.areal_mass").spanned(check, a, "material.areal_mass")?
+                * KG_PER_M2_IN_T_PER_MM2
                 / thickness,
         ),
-        (None, Some(d)) => Some(check.range(
-            d,
-            "material.density",
-            |x| x > 0.0,
-            "a density > 0 t/mm³ (1.0e-9 for 0.30 kg/m² at 0.3 mm)",
-        )?),
+        (None, Some(d)) => Some(bound("material.density").spanned(check, d, "material.density")?),
         (None, None) if named_set => Some(DEFAULT_AREAL_MASS * KG_PER_M2_IN_T_PER_MM2 / thickness),
         (None, None) => None,
     };
@@ -266,4 +238,26 @@ pub(super) fn density(
         ));
     }
     Ok(density)
+}
+
+/// A `params` key's law (`key` names it in messages): a named set, or a
+/// parameter file relative to `base_dir` whose errors are prefixed with
+/// the case file's line and key (`case.toml:12: ply[0].params =
+/// "fabric.toml": fabric.toml: …`).
+///
+/// # Errors
+/// [`ConfigError::Referenced`] around the set's or file's error.
+pub(crate) fn load_params(
+    check: &TomlChecker,
+    params: &Spanned<String>,
+    key: &str,
+    base_dir: &Path,
+) -> Result<MaterialSpec, ConfigError> {
+    let name = params.get_ref();
+    let loaded = if MaterialSpec::named_text(name).is_some() {
+        MaterialSpec::load(name)
+    } else {
+        MaterialSpec::load(&base_dir.join(name).display().to_string())
+    };
+    loaded.map_err(|e| check.referenced(check.line_of(params), key, &format!("\"{name}\""), e))
 }
