@@ -761,6 +761,16 @@ pub const FUZZ_KNOWN: &[Known] = &[
         class: "long-number",
         needle: "kg, <HERE> N)",
     },
+    Known {
+        name: "long-number-prescribed-tool-stroke-in-summary",
+        class: "long-number",
+        needle: "(prescribed, <HERE> mm)",
+    },
+    Known {
+        name: "long-number-prescribed-tool-stroke-in-summary",
+        class: "long-number",
+        needle: "(prescribed, -<HERE> mm)",
+    },
     // Keys accepted where they do not apply, without an error or a warning.
     Known {
         name: "inapplicable-key-tail-length",
