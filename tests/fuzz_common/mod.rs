@@ -771,6 +771,11 @@ pub const FUZZ_KNOWN: &[Known] = &[
         class: "long-number",
         needle: "(prescribed, -<HERE> mm)",
     },
+    Known {
+        name: "long-number-node-reference-position",
+        class: "long-number",
+        needle: "(reference (",
+    },
     // Keys accepted where they do not apply, without an error or a warning.
     Known {
         name: "inapplicable-key-tail-length",
