@@ -20,7 +20,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use fuzz_common::{
-    Failure, accepted_non_finite, cases, guarded, mutate, quiet_panics, report, show,
+    Failure, accepted_non_finite, ascii_stl, binary_stl, cases, guarded, mutate, obj, quiet_panics,
+    report, show,
 };
 use ncform::case::OatCase;
 use ncform::case::forming::{FormingCase, is_forming};
@@ -82,6 +83,18 @@ fn bad_message(msg: &str, file: &str, place: bool, input: &[u8]) -> Option<Strin
     }
 }
 
+/// How a reader's mutants are drawn.
+#[derive(Clone, Copy)]
+enum Draw {
+    /// Any byte operator ([`mutate`]).
+    Any,
+    /// Extreme numbers only.
+    Numbers,
+    /// Wrong value types, moved keys, scaled numbers
+    /// ([`fuzz_common::mutate_types`]).
+    Types,
+}
+
 /// A seed input and the name it is read under.
 struct Seed {
     name: String,
@@ -95,7 +108,7 @@ fn campaign(
     reader: &str,
     seeds: &[Seed],
     count: usize,
-    numbers_only: bool,
+    draw: Draw,
     check: impl Fn(Vec<u8>, String, usize) -> Option<String> + Send + Sync + Clone + 'static,
 ) -> (Vec<Failure>, usize) {
     quiet_panics();
@@ -104,7 +117,11 @@ fn campaign(
     for k in 0..count {
         let seed = &seeds[k % seeds.len()];
         let mut rng = fuzz_common::rng_for(reader, k);
-        let (mutant, operators) = mutate(&seed.bytes, &mut rng, numbers_only);
+        let (mutant, operators) = match draw {
+            Draw::Any => mutate(&seed.bytes, &mut rng, false),
+            Draw::Numbers => mutate(&seed.bytes, &mut rng, true),
+            Draw::Types => fuzz_common::mutate_types(&seed.bytes, &mut rng),
+        };
         let input = mutant.clone();
         let name = seed.name.clone();
         let f = check.clone();
@@ -252,7 +269,7 @@ fn check_case(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
 #[test]
 fn fuzz_case_files() {
     let seeds = case_seeds();
-    let (failures, n) = campaign("case", &seeds, cases(DEFAULT_CASES), false, check_case);
+    let (failures, n) = campaign("case", &seeds, cases(DEFAULT_CASES), Draw::Any, check_case);
     report(&failures, n);
 }
 
@@ -266,7 +283,24 @@ fn fuzz_case_values() {
         "case-values",
         &seeds,
         cases(DEFAULT_CASES),
-        true,
+        Draw::Numbers,
+        check_case,
+    );
+    report(&failures, n);
+}
+
+/// As [`fuzz_case_files`], with values of the wrong type (a number where
+/// a string, an array or a table is expected and the other way round, an
+/// integer for a float, a bool), keys moved to other tables and numbers
+/// scaled far from the seed's.
+#[test]
+fn fuzz_case_types() {
+    let seeds = case_seeds();
+    let (failures, n) = campaign(
+        "case-types",
+        &seeds,
+        cases(DEFAULT_CASES),
+        Draw::Types,
         check_case,
     );
     report(&failures, n);
@@ -313,7 +347,21 @@ fn fuzz_parameter_files() {
         "params",
         &param_seeds(),
         cases(DEFAULT_CASES),
-        false,
+        Draw::Any,
+        check_params,
+    );
+    report(&failures, n);
+}
+
+/// As [`fuzz_parameter_files`], with wrong value types, moved keys and
+/// scaled numbers ([`fuzz_case_types`]).
+#[test]
+fn fuzz_parameter_types() {
+    let (failures, n) = campaign(
+        "params-types",
+        &param_seeds(),
+        cases(DEFAULT_CASES),
+        Draw::Types,
         check_params,
     );
     report(&failures, n);
@@ -358,7 +406,7 @@ fn fuzz_inp() {
         "inp",
         &mesh_seed("square.inp"),
         cases(DEFAULT_CASES),
-        false,
+        Draw::Any,
         check_mesh,
     );
     report(&failures, n);
@@ -372,78 +420,13 @@ fn fuzz_msh() {
         "msh",
         &mesh_seed("square.msh"),
         cases(DEFAULT_CASES),
-        false,
+        Draw::Any,
         check_mesh,
     );
     report(&failures, n);
 }
 
 // ----------------------------------------------------------- tool meshes
-
-/// The corners and outward faces of a unit cube, the seed tool.
-fn cube() -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
-    let v: Vec<[f32; 3]> = (0..8)
-        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    (v, t)
-}
-
-fn binary_stl() -> Vec<u8> {
-    let (v, t) = cube();
-    let mut out = vec![0u8; 80];
-    out.extend_from_slice(&(t.len() as u32).to_le_bytes());
-    for tri in &t {
-        out.extend_from_slice(&[0u8; 12]);
-        for &i in tri {
-            for c in v[i] {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        out.extend_from_slice(&[0u8; 2]);
-    }
-    out
-}
-
-fn ascii_stl() -> Vec<u8> {
-    let (v, t) = cube();
-    let mut out = String::from("solid cube\n");
-    for tri in &t {
-        out.push_str("  facet normal 0 0 0\n    outer loop\n");
-        for &i in tri {
-            out.push_str(&format!(
-                "      vertex {} {} {}\n",
-                v[i][0], v[i][1], v[i][2]
-            ));
-        }
-        out.push_str("    endloop\n  endfacet\n");
-    }
-    out.push_str("endsolid cube\n");
-    out.into_bytes()
-}
-
-fn obj() -> Vec<u8> {
-    let (v, t) = cube();
-    let mut out = String::from("# unit cube\no cube\n");
-    for p in &v {
-        out.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
-    }
-    for tri in &t {
-        out.push_str(&format!("f {} {} {}\n", tri[0] + 1, tri[1] + 1, tri[2] + 1));
-    }
-    out.into_bytes()
-}
 
 fn check_tool(bytes: Vec<u8>, name: String, k: usize) -> Option<String> {
     let ext = name.rsplit('.').next().unwrap();
@@ -481,7 +464,7 @@ fn fuzz_tool_meshes() {
             bytes: obj(),
         },
     ];
-    let (failures, n) = campaign("tool", &seeds, cases(DEFAULT_CASES), false, check_tool);
+    let (failures, n) = campaign("tool", &seeds, cases(DEFAULT_CASES), Draw::Any, check_tool);
     report(&failures, n);
 }
 
@@ -551,7 +534,7 @@ fn fuzz_eval_lines() {
         name: "stdin".into(),
         bytes: EVAL_LINES.as_bytes().to_vec(),
     }];
-    let (failures, n) = campaign("eval", &seeds, cases(DEFAULT_CASES), false, check_eval);
+    let (failures, n) = campaign("eval", &seeds, cases(DEFAULT_CASES), Draw::Any, check_eval);
     report(&failures, n);
 }
 

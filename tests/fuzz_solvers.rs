@@ -3,9 +3,11 @@
 //! quasi-static forming case — with numeric tokens of the case file or of
 //! its parameter file replaced by extreme values, run to the end through
 //! the same functions as `ncform run`. Asserted for every mutant: no panic,
-//! an answer within [`BOUND`], no non-finite number in the returned summary
-//! or in a CSV written, and either a result or an error naming the case or
-//! parameter file.
+//! an answer within [`BOUND`], no non-finite number in the returned summary,
+//! a sound run folder (`fuzz_common::check_run_folder`: `status.json`
+//! agreeing with the exit status, the manifest, whole files without
+//! `null`/`NaN`/`inf`; known defects aside, `fuzz_common::FUZZ_KNOWN`), and
+//! either a result or an error naming the case or parameter file.
 //!
 //! Work is capped through the seeds' own keys (`explicit.max_increments`,
 //! `solver.max_wall_seconds`), whose lines are never mutated. The bounded
@@ -15,11 +17,12 @@
 
 mod fuzz_common;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use fuzz_common::{
-    Failure, accepted_non_finite, cases_scaled, guarded, mutate, quiet_panics, report, show,
+    Failure, accepted_non_finite, cases_scaled, check_run_folder, guarded, known, mutate,
+    quiet_panics, report, show,
 };
 use ncform::case::OatCase;
 use ncform::case::forming::FormingCase;
@@ -167,31 +170,6 @@ enum Kind {
     Forming,
 }
 
-/// Whether any CSV written under `out` holds a non-finite number.
-fn csv_non_finite(out: &Path) -> Option<String> {
-    let mut stack = vec![out.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        for entry in std::fs::read_dir(&dir).ok()?.flatten() {
-            let path = entry.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.extension().is_some_and(|e| e == "csv") {
-                let text = std::fs::read_to_string(&path).ok()?;
-                for line in text.lines().filter(|l| !l.starts_with('#')) {
-                    let bad = line.split(',').any(|cell| {
-                        let c = cell.trim().to_ascii_lowercase();
-                        c.contains("nan") || c.contains("inf")
-                    });
-                    if bad {
-                        return Some(format!("{}: {line}", path.display()));
-                    }
-                }
-            }
-        }
-    }
-    None
-}
-
 /// Runs one mutant: the case text and the parameter text are written to
 /// their own folder, loaded and run; returns what is wrong, if anything,
 /// and whether the solver ran (the case was accepted).
@@ -215,17 +193,26 @@ fn check_run(
         Kind::Oat => match OatCase::load(&case_path) {
             Err(e) => Err(e.to_string()),
             Ok(case) => run_case(&case, &out, Progress::Quiet)
-                .map(|s| format!("{s:?}"))
+                .map(|s| (format!("{s:?}"), s.exit_status.code()))
                 .map_err(|e| e.to_string()),
         },
         Kind::Forming => match FormingCase::load(&case_path) {
             Err(e) => Err(e.to_string()),
             Ok(case) => run_forming(&case, &out, Progress::Quiet)
-                .map(|s| format!("{s:?}"))
+                .map(|s| (format!("{s:?}"), s.exit_status.code()))
                 .map_err(|e| e.to_string()),
         },
     };
     let ran = result.is_ok();
+    let exit = result.as_ref().map_or(1, |(_, code)| *code);
+    let result = result.map(|(summary, _)| summary);
+    // The run folder (`fuzz_common::check_run_folder`), outside the
+    // known defects.
+    let folder: Vec<String> = check_run_folder(&out, exit)
+        .into_iter()
+        .filter(|p| known(p.class, &p.detail).is_none())
+        .map(|p| p.to_string())
+        .collect();
     // Messages only: the summary's numbers are data, written in full.
     let text = match &result {
         Ok(summary) => fuzz_common::debug_strings(summary),
@@ -233,21 +220,22 @@ fn check_run(
     };
     let input = format!("{case_text}{params_text}");
     if let Some(n) = fuzz_common::long_number(&text, input.as_bytes()) {
-        return (
-            Some(format!(
-                "a message writes a {}-digit number: {}",
-                n.len(),
-                fuzz_common::clip(&text.replace(&n, "<HERE>"), 1500)
-            )),
-            ran,
+        let what = format!(
+            "a message writes a {}-digit number: {}",
+            n.len(),
+            fuzz_common::clip(&text.replace(&n, "<HERE>"), 1500)
         );
+        if known("long-number", &what).is_none() {
+            return (Some(what), ran);
+        }
     }
     let what = match result {
         Ok(summary) => accepted_non_finite(&summary)
             .map(|at| format!("a non-finite number in the summary: {at}"))
             .or_else(|| {
-                csv_non_finite(&out).map(|at| format!("a non-finite number in a CSV: {at}"))
+                (!folder.is_empty()).then(|| format!("the run folder: {}", folder.join("; ")))
             }),
+        Err(_) if !folder.is_empty() => Some(format!("the run folder: {}", folder.join("; "))),
         Err(msg) if names(&msg) => None,
         Err(msg) => Some(format!(
             "error names neither the case nor the parameter file: {msg}"
@@ -328,19 +316,27 @@ fn seeds_run_to_the_end() {
         std::fs::write(&case, text).unwrap();
         std::fs::write(dir.path().join("fabric.toml"), &params).unwrap();
         let out = dir.path().join("out");
-        let complete = match kind {
+        let (complete, exit) = match kind {
             Kind::Oat => {
-                run_case(&OatCase::load(&case).unwrap(), &out, Progress::Quiet)
-                    .unwrap()
-                    .complete
+                let s = run_case(&OatCase::load(&case).unwrap(), &out, Progress::Quiet).unwrap();
+                (s.complete, s.exit_status.code())
             }
             Kind::Forming => {
-                run_forming(&FormingCase::load(&case).unwrap(), &out, Progress::Quiet)
-                    .unwrap()
-                    .complete
+                let s =
+                    run_forming(&FormingCase::load(&case).unwrap(), &out, Progress::Quiet).unwrap();
+                (s.complete, s.exit_status.code())
             }
         };
         assert!(complete, "the seed {text} did not run to the end");
+        let problems: Vec<String> = check_run_folder(&out, exit)
+            .into_iter()
+            .filter(|p| known(p.class, &p.detail).is_none())
+            .map(|p| p.to_string())
+            .collect();
+        assert!(
+            problems.is_empty(),
+            "the seed {text}: its run folder: {problems:#?}"
+        );
     }
 }
 
