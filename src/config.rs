@@ -298,6 +298,33 @@ impl TomlChecker<'_> {
         0
     }
 
+    /// The keys given in the table `[table]` of the text, in file order
+    /// (`table` as its header writes it: `explicit`).
+    pub fn keys_of_table(&self, table: &str) -> Vec<String> {
+        let mut current = String::new();
+        let mut keys = Vec::new();
+        for line in self.text.lines() {
+            let t = line.trim();
+            if let Some(header) = t.strip_prefix('[') {
+                current = header
+                    .trim_start_matches('[')
+                    .split(']')
+                    .next()
+                    .unwrap_or("")
+                    .trim()
+                    .to_string();
+                continue;
+            }
+            if current == table
+                && let Some((key, _)) = t.split_once('=')
+                && !t.starts_with('#')
+            {
+                keys.push(key.trim().to_string());
+            }
+        }
+        keys
+    }
+
     /// The key `name` with its line and value when it is given.
     pub fn given<T: Shown>(&self, name: &'static str, v: &Option<Spanned<T>>) -> Option<GivenKey> {
         v.as_ref().map(|v| GivenKey {

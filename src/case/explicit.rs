@@ -434,10 +434,15 @@ pub(super) fn unused_explicit_table(
     raw: Option<&ExplicitRaw>,
 ) {
     if kind == SolverKind::QuasiStatic && raw.is_some() {
+        let keys = check.keys_of_table("explicit");
         check.warn(
             check.line_of_header("explicit"),
             "[explicit]",
-            "(a table)".into(),
+            if keys.is_empty() {
+                "(an empty table)".into()
+            } else {
+                format!("(keys {})", keys.join(", "))
+            },
             String::new(),
             "the quasi-static solver runs this case and does not use the [explicit] table \
              (it is checked, so that solver = \"explicit\" is a one-line change)",

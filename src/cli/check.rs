@@ -16,9 +16,10 @@ use crate::report::{ExitStatus, Prepared, prepare};
 
 use super::run::RunCommandError;
 
-/// What `check` prints on `out` for a prepared case: what the case is, the
-/// estimate, and the warning when its outputs would dwarf the solve (also
-/// on `out`: the check's whole answer is its report).
+/// What `check` prints on `out` for a prepared case: what the case is, its
+/// warnings (unusual values, keys read but not used), the estimate, and
+/// the warning when its outputs would dwarf the solve (also on `out`: the
+/// check's whole answer is its report).
 ///
 /// # Errors
 /// Only a failed write to `out`.
@@ -34,8 +35,14 @@ pub fn write_check(prepared: &Prepared, mut out: impl Write) -> std::io::Result<
         SolverKind::Explicit => "explicit",
     };
     let m = estimate.model;
+    let count =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     let plies = if m.plies > 0 {
-        format!(", {} plies, {} tools", m.plies, m.tools)
+        format!(
+            ", {}, {}",
+            count(m.plies, "ply", "plies"),
+            count(m.tools, "tool", "tools")
+        )
     } else {
         String::new()
     };
@@ -48,6 +55,9 @@ pub fn write_check(prepared: &Prepared, mut out: impl Write) -> std::io::Result<
         m.elements,
         m.terms
     )?;
+    for warning in case.warnings() {
+        writeln!(out, "warning: {warning}")?;
+    }
     for line in estimate.lines() {
         writeln!(out, "{line}")?;
     }

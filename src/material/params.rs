@@ -352,6 +352,55 @@ impl MaterialSpec {
         })
     }
 
+    /// The law's name as a parameter file's `law` key gives it.
+    pub fn law_name(&self) -> &'static str {
+        match self.material {
+            Material::UdNcf(_) => "ud-ncf",
+            Material::OrthotropicSvk(_) => "orthotropic-svk",
+        }
+    }
+
+    /// The law's parameters under the keys a parameter file gives them
+    /// (`w6.c_ini`, `w11.i_lock`, `coupling.k_min`, `svk.e1`), in the
+    /// order of `docs/parameters.md`; a term's transition and lock keys
+    /// only when it has them. The inverse of [`MaterialSpec::from_toml_str`]
+    /// on the law's values (`x_t` and the rate are derived, not listed).
+    pub fn parameter_values(&self) -> Vec<(String, f64)> {
+        let mut values = Vec::new();
+        match &self.material {
+            Material::UdNcf(law) => {
+                for (name, term) in [
+                    ("w4", &law.w4),
+                    ("w6", &law.w6),
+                    ("w8", &law.w8),
+                    ("w11", &law.w11),
+                ] {
+                    values.push((format!("{name}.c_ini"), term.c_ini));
+                    if let Some(t) = term.transition {
+                        values.push((format!("{name}.s_ini"), t.s_ini));
+                        values.push((format!("{name}.c_mid"), t.c_mid));
+                        values.push((format!("{name}.delta_s_mid"), t.delta_s_mid));
+                    }
+                    if let Some(l) = term.lock {
+                        values.push((format!("{name}.c_lock"), l.c_lock));
+                        values.push((format!("{name}.i_lock"), l.i_lock));
+                    }
+                }
+                let c = &law.coupling;
+                values.push(("coupling.k_min".into(), c.k_min));
+                values.push(("coupling.s11".into(), c.s11));
+                values.push(("coupling.e11".into(), c.e11));
+            }
+            Material::OrthotropicSvk(svk) => {
+                values.push(("svk.e1".into(), svk.e1));
+                values.push(("svk.e2".into(), svk.e2));
+                values.push(("svk.nu12".into(), svk.nu12));
+                values.push(("svk.g12".into(), svk.g12));
+            }
+        }
+        values
+    }
+
     /// The TOML text of a named set, if `name` is one.
     pub fn named_text(name: &str) -> Option<&'static str> {
         NAMED_SETS.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)

@@ -116,8 +116,12 @@ impl Model {
                 let local = node - g.first;
                 let x = g.reference.get(local).copied().unwrap_or_default();
                 format!(
-                    "node {} of {} (reference ({:.2}, {:.2}, {:.2}) mm)",
-                    g.labels[local], g.name, x.x, x.y, x.z
+                    "node {} of {} (reference ({}, {}, {}) mm)",
+                    g.labels[local],
+                    g.name,
+                    coordinate(x.x),
+                    coordinate(x.y),
+                    coordinate(x.z)
                 )
             }
             None => format!("node {} (index)", node + 1),
@@ -194,5 +198,16 @@ impl Model {
         for t in &mut self.terms {
             t.restore();
         }
+    }
+}
+
+/// A node coordinate in a message: two decimals up to a kilometre, the
+/// digits that matter beyond (a coordinate of 10¹⁸ mm would otherwise
+/// print 22 digits).
+fn coordinate(x: f64) -> String {
+    if x.abs() < 1e6 {
+        format!("{x:.2}")
+    } else {
+        crate::config::readable_number(x)
     }
 }

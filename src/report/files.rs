@@ -182,10 +182,11 @@ impl Report for FolderReport<'_> {
 fn write_resolved_case(built: &Built, folder: &mut RunFolder) {
     let path = folder.path().join(super::provenance::RESOLVED_CASE_FILE);
     let document = super::provenance::resolved_case_document_of(built);
-    folder.outputs_mut().write(&path, |p| {
-        let text = serde_json::to_string_pretty(&document).map_err(|e| e.to_string())?;
-        std::fs::write(p, text + "\n").map_err(|e| e.to_string())
-    });
+    super::json::write_json(
+        folder.outputs_mut(),
+        &path,
+        &super::json::without_nulls(document),
+    );
 }
 
 /// Runs `case` into `report` and returns the summary it wrote.

@@ -601,7 +601,7 @@ fn write_atomic(path: &Path, text: &str) -> std::io::Result<()> {
 /// Creates the status file `path` with `status`, failing with
 /// `AlreadyExists` when there is one; a file left half written is removed.
 fn create_status(path: &Path, status: &StatusFile) -> std::io::Result<()> {
-    let text = serde_json::to_string_pretty(status).map_err(std::io::Error::other)? + "\n";
+    let (text, _) = super::json::json_text(status).map_err(std::io::Error::other)?;
     let mut file = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
@@ -775,8 +775,8 @@ impl RunFolder {
     }
 
     fn write_status(&self) -> std::io::Result<()> {
-        let text = serde_json::to_string_pretty(&self.status).map_err(std::io::Error::other)?;
-        write_atomic(&self.path().join(STATUS_FILE), &(text + "\n"))
+        let (text, _) = super::json::json_text(&self.status).map_err(std::io::Error::other)?;
+        write_atomic(&self.path().join(STATUS_FILE), &text)
     }
 
     /// Rewrites `status.json` with the end of the solve, `solve`, the

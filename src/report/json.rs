@@ -62,6 +62,24 @@ pub fn write_json<T: Serialize + ?Sized>(
     })
 }
 
+/// `value` without the `null` members of its objects, at every depth: for
+/// documents built as [`serde_json::Value`] from structures whose unset
+/// options serialise as `null` (the resolved case: an unset key is left
+/// out, and the automatic value that `docs/cases.md` gives applies).
+pub fn without_nulls(value: serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match value {
+        Value::Object(map) => Value::Object(
+            map.into_iter()
+                .filter(|(_, v)| !v.is_null())
+                .map(|(k, v)| (k, without_nulls(v)))
+                .collect(),
+        ),
+        Value::Array(items) => Value::Array(items.into_iter().map(without_nulls).collect()),
+        other => other,
+    }
+}
+
 /// serde_json's pretty formatter, writing `null` as [`NOT_FINITE`].
 struct FiniteFormatter {
     pretty: PrettyFormatter<'static>,

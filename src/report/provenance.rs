@@ -168,12 +168,19 @@ fn v3(v: &nalgebra::Vector3<f64>) -> Value {
     json!([v.x, v.y, v.z])
 }
 
-/// A law as JSON: where it came from and its parameters.
+/// A law as JSON: where it came from, the law and its parameters under
+/// the parameter file's keys ([`MaterialSpec::parameter_values`]).
 fn material(m: &MaterialSpec) -> Value {
+    let parameters: serde_json::Map<String, Value> = m
+        .parameter_values()
+        .into_iter()
+        .map(|(key, value)| (key, json!(value)))
+        .collect();
     json!({
         "name": m.name,
         "source": m.source,
-        "parameters": format!("{:?}", m.material),
+        "law": m.law_name(),
+        "parameters": parameters,
     })
 }
 
@@ -285,19 +292,27 @@ pub fn resolved_case_document(case: &Case) -> Value {
     json!({
         "format": RESOLVED_FORMAT,
         "provenance": Provenance::of(case),
+        "warnings": warning_lines(case.warnings()),
         "case": resolved_case(case),
     })
 }
 
 /// [`resolved_case_document`] of the case a run's reports see.
 pub fn resolved_case_document_of(built: &Built) -> Value {
-    let (scenario, case) = match built {
-        Built::Oat { case, .. } => (Scenario::Oat(case), oat(case)),
-        Built::Forming { case, .. } => (Scenario::Forming(case), forming(case)),
+    let (scenario, case, warnings) = match built {
+        Built::Oat { case, .. } => (Scenario::Oat(case), oat(case), &case.warnings),
+        Built::Forming { case, .. } => (Scenario::Forming(case), forming(case), &case.warnings),
     };
     json!({
         "format": RESOLVED_FORMAT,
         "provenance": Provenance::of_scenario(scenario),
+        "warnings": warning_lines(warnings),
         "case": case,
     })
+}
+
+/// The case's warnings as the lines `ncform run` prints (without
+/// `warning: `).
+fn warning_lines(warnings: &[crate::config::CaseWarning]) -> Vec<String> {
+    warnings.iter().map(ToString::to_string).collect()
 }

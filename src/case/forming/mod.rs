@@ -239,7 +239,7 @@ impl FormingCase {
             maps,
             states,
             history_rows,
-        } = output::output(&check, raw.output.as_ref())?;
+        } = output::output(&check, raw.output.as_ref(), solver_kind)?;
         Ok(Self {
             title: match &raw.title {
                 None => "forming".to_string(),

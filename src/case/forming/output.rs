@@ -5,6 +5,7 @@
 
 use super::raw::OutputRaw;
 use super::{DEFAULT_HISTORY_ROWS, DEFAULT_STATES, MapView};
+use crate::case::SolverKind;
 use crate::config::{ConfigError, TomlChecker};
 
 /// The validated `[output]` table.
@@ -20,8 +21,26 @@ pub(super) struct Outputs {
 }
 
 /// The `[output]` table's camera, maps switch, states and history rows,
-/// each with its default when left out.
-pub(super) fn output(check: &TomlChecker, raw: Option<&OutputRaw>) -> Result<Outputs, ConfigError> {
+/// each with its default when left out; `history` under the quasi-static
+/// solver (one row per converged step) is a warning: read and checked, so
+/// that switching solvers is a one-line change, but not used.
+pub(super) fn output(
+    check: &TomlChecker,
+    raw: Option<&OutputRaw>,
+    solver: SolverKind,
+) -> Result<Outputs, ConfigError> {
+    if solver == SolverKind::QuasiStatic
+        && let Some(history) = raw.and_then(|o| o.history.as_ref())
+    {
+        check.warn(
+            check.line_of(history),
+            "output.history",
+            history.get_ref().to_string(),
+            String::new(),
+            "the quasi-static solver writes one history row per converged step and does not use \
+             output.history (it is checked, so that solver = \"explicit\" is a one-line change)",
+        );
+    }
     let camera = match raw.and_then(|o| o.camera.as_ref()) {
         None => MapView::Below,
         Some(c) => check.choice(

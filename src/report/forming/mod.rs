@@ -23,6 +23,7 @@ pub mod maps;
 pub mod readout;
 pub mod states;
 
+use crate::config::readable_number;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -497,12 +498,13 @@ impl FormingFiles {
                     let motion = match t.spec.motion {
                         ToolMotion::Fixed => "fixed".to_string(),
                         ToolMotion::Prescribed { displacement, .. } => {
-                            format!("prescribed, {displacement} mm")
+                            format!("prescribed, {} mm", readable_number(displacement))
                         }
                         ToolMotion::Floating { mass, weight, .. } => {
                             format!(
-                                "floating, {} kg, {weight} N",
-                                mass / crate::case::forming::KG_IN_T
+                                "floating, {} kg, {} N",
+                                readable_number(mass / crate::case::forming::KG_IN_T),
+                                readable_number(weight)
                             )
                         }
                     };

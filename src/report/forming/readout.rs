@@ -4,6 +4,7 @@
 //! image-correlation view (the formed mesh projected on the blank plane,
 //! strains recomputed on the projection).
 
+use crate::config::readable_number;
 use serde::Serialize;
 
 use crate::case::forming::FormingCase;
@@ -28,7 +29,11 @@ pub enum ReadoutError {
     },
     /// A zone holds no element of its ply.
     #[error(
-        "{source_file}: zone[{index}] (\"{zone}\"): no element of ply \"{ply}\" has its centroid in the window centred at [{x}, {y}] mm of size [{width}, {height}] mm; expected a window on the blank"
+        "{source_file}: zone[{index}] (\"{zone}\"): no element of ply \"{ply}\" has its centroid in the window centred at [{}, {}] mm of size [{}, {}] mm; expected a window on the blank",
+        readable_number(*x),
+        readable_number(*y),
+        readable_number(*width),
+        readable_number(*height)
     )]
     EmptyZone {
         /// The case file.
