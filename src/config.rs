@@ -273,37 +273,28 @@ impl TomlChecker<'_> {
     /// `name = { key = … }` is found by its `name` on a line of that
     /// table.
     pub fn line_of_key(&self, table: &str, key: &str) -> usize {
-        let mut current = String::new();
-        for (n, line) in self.text.lines().enumerate() {
-            let t = line.trim();
-            if let Some(header) = t.strip_prefix('[') {
-                current = header
-                    .trim_start_matches('[')
-                    .split(']')
-                    .next()
-                    .unwrap_or("")
-                    .trim()
-                    .to_string();
-                continue;
-            }
-            if current != table {
-                continue;
-            }
-            if let Some(rest) = t.strip_prefix(key)
-                && rest.trim_start().starts_with('=')
-            {
-                return n + 1;
-            }
-        }
-        0
+        self.table_lines(table)
+            .find(|(_, t)| {
+                t.strip_prefix(key)
+                    .is_some_and(|rest| rest.trim_start().starts_with('='))
+            })
+            .map_or(0, |(n, _)| n + 1)
     }
 
     /// The keys given in the table `[table]` of the text, in file order
     /// (`table` as its header writes it: `explicit`).
     pub fn keys_of_table(&self, table: &str) -> Vec<String> {
+        self.table_lines(table)
+            .filter(|(_, t)| !t.starts_with('#'))
+            .filter_map(|(_, t)| t.split_once('=').map(|(key, _)| key.trim().to_string()))
+            .collect()
+    }
+
+    /// The lines of the table `[table]` of the text (`table` as its header
+    /// writes it), trimmed, with their 0-based index.
+    fn table_lines<'s>(&'s self, table: &'s str) -> impl Iterator<Item = (usize, &'s str)> + 's {
         let mut current = String::new();
-        let mut keys = Vec::new();
-        for line in self.text.lines() {
+        self.text.lines().enumerate().filter_map(move |(n, line)| {
             let t = line.trim();
             if let Some(header) = t.strip_prefix('[') {
                 current = header
@@ -313,16 +304,10 @@ impl TomlChecker<'_> {
                     .unwrap_or("")
                     .trim()
                     .to_string();
-                continue;
+                return None;
             }
-            if current == table
-                && let Some((key, _)) = t.split_once('=')
-                && !t.starts_with('#')
-            {
-                keys.push(key.trim().to_string());
-            }
-        }
-        keys
+            (current == table).then_some((n, t))
+        })
     }
 
     /// The key `name` with its line and value when it is given.
