@@ -339,15 +339,15 @@ impl TomlChecker<'_> {
                 g.line,
                 &format!("{table}.{}", g.name),
                 g.value.clone(),
-                &format!(
-                    "no {} for {what}, which takes only: {}",
-                    g.name,
-                    if takes.is_empty() {
-                        "(none of these keys)".to_string()
-                    } else {
+                &if takes.is_empty() {
+                    format!("no {} for {what}", g.name)
+                } else {
+                    format!(
+                        "no {} for {what}, which takes only: {}",
+                        g.name,
                         takes.join(", ")
-                    }
-                ),
+                    )
+                },
             )),
         }
     }

@@ -385,7 +385,7 @@ fn keys_that_do_not_apply_are_refused_with_those_that_do() {
             ),
             "direction = [0, 0, 0]",
             "tool[0].direction = [0, 0, 0]",
-            "motion \"fixed\", which takes only: (none",
+            "motion \"fixed\" (a tool that does not move takes none of direction, displacement, mass, weight)",
         ),
         (
             edit(FORMING, "mass = 1.0", "mass = 1.0\ndisplacement = 5.0"),

@@ -716,17 +716,15 @@ fn tool_motion(
         check.given("mass", &t.mass),
         check.given("weight", &t.weight),
     ];
-    let (takes, name) = match motion_kind {
-        Move::Fixed => (FIXED_KEYS, "fixed"),
-        Move::Prescribed => (PRESCRIBED_KEYS, "prescribed"),
-        Move::Floating => (FLOATING_KEYS, "floating"),
+    let (takes, what) = match motion_kind {
+        Move::Fixed => (
+            FIXED_KEYS,
+            "motion \"fixed\" (a tool that does not move takes none of direction, displacement, mass, weight)",
+        ),
+        Move::Prescribed => (PRESCRIBED_KEYS, "motion \"prescribed\""),
+        Move::Floating => (FLOATING_KEYS, "motion \"floating\""),
     };
-    check.only_keys(
-        &format!("tool[{i}]"),
-        &given,
-        takes,
-        &format!("motion \"{name}\""),
-    )?;
+    check.only_keys(&format!("tool[{i}]"), &given, takes, what)?;
     let motion = match motion_kind {
         Move::Fixed => ToolMotion::Fixed,
         Move::Prescribed => {
