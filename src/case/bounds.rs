@@ -132,6 +132,11 @@ pub struct Bound {
     pub why: &'static str,
 }
 
+/// Largest `explicit.roving_mass_length` \[mm\]: a coupling mass reaching
+/// over a metre of roving, far past any bench's size (`docs/explicit.md`,
+/// "Roving mass scaling").
+pub const MAX_ROVING_MASS_LENGTH: f64 = 1000.0;
+
 /// Largest length, position or displacement of a case \[mm\]: a kilometre.
 pub const MAX_LENGTH: f64 = 1.0e6;
 
@@ -584,7 +589,7 @@ pub const BOUNDS: &[Bound] = &[
         keys: &["explicit.roving_mass_length"],
         rule: "a length in [0, 1000] mm",
         unit: "mm",
-        hard: Interval::closed(0.0, crate::case::explicit::MAX_ROVING_MASS_LENGTH),
+        hard: Interval::closed(0.0, MAX_ROVING_MASS_LENGTH),
         usual: None,
         hint: "",
         why: "a coupling mass reaching over a metre of roving, far past any bench",

@@ -5,6 +5,7 @@ use serde::de::{self, Deserializer, MapAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
+pub use crate::case::bounds::MAX_ROVING_MASS_LENGTH;
 use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 use crate::element::RovingCoupling;
@@ -22,10 +23,6 @@ pub const KG_PER_M2_IN_T_PER_MM2: f64 = 1.0e-9;
 /// kinetic energy below 1 % of the internal energy from 10 % of the stroke
 /// on, in the 45° cross-check (docs/explicit.md).
 pub const DEFAULT_CLAMP_SPEED: f64 = 100.0;
-/// Largest `explicit.roving_mass_length` \[mm\]: a coupling mass reaching
-/// over a metre of roving, far past any bench's size (`docs/explicit.md`,
-/// "Roving mass scaling").
-pub const MAX_ROVING_MASS_LENGTH: f64 = 1000.0;
 /// Default number of history rows over the stroke of an explicit run.
 pub const DEFAULT_HISTORY_ROWS: f64 = 160.0;
 /// Most history rows `explicit.history_interval` may ask for (each row is

@@ -12,8 +12,27 @@
 
 use serde::Serialize;
 
-use super::runner::SolverEstimate;
 use crate::case::Case;
+use crate::solver::ExplicitEstimate;
+
+/// What a prepared run is expected to take, as its solver sees it before
+/// the first step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "solver", rename_all = "kebab-case")]
+pub enum SolverEstimate {
+    /// Newton load steps: at least `min_steps` (the programme over the
+    /// largest increment, with the output stops); cut-backs add more.
+    QuasiStatic {
+        /// Fewest load steps the settings allow.
+        min_steps: usize,
+        /// Steps if the first increment is kept throughout.
+        initial_steps: usize,
+        /// Free unknowns.
+        unknowns: usize,
+    },
+    /// The explicit run's increments from its first stable step.
+    Explicit(ExplicitEstimate),
+}
 
 /// Explicit element-cycles per second of a membrane-only model (an OAT)
 /// on the project's machine: the membrane bench's 33.8 M/s on one thread

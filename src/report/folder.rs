@@ -291,6 +291,25 @@ impl Outputs {
         }
     }
 
+    /// Writes `value` as JSON ([`super::json::json_text`]: no `null`,
+    /// a non-finite number written as a named string) to `path`, whole or
+    /// not at all like [`Outputs::write`]; a value that was not finite is
+    /// said on the error stream, naming the file.
+    pub fn write_json<T: serde::Serialize + ?Sized>(&mut self, path: &Path, value: &T) -> bool {
+        self.write(path, |p| {
+            let (text, not_finite) =
+                super::json::json_text(value).map_err(|e| super::io_err(path, e))?;
+            if not_finite > 0 {
+                eprintln!(
+                    "warning: {}: {not_finite} figure(s) could not be computed (not finite); written as \"{}\"",
+                    path.display(),
+                    super::json::NOT_FINITE
+                );
+            }
+            std::fs::write(p, text).map_err(|e| super::io_err(path, e))
+        })
+    }
+
     /// Records an output that could not be made at all (`what`: its path
     /// relative to the folder, or what it is), reported on stderr.
     pub fn record_missing(&mut self, what: &str, error: String) {

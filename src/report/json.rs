@@ -13,7 +13,6 @@
 //! so the caller can say it on the error stream.
 
 use std::io;
-use std::path::Path;
 
 use serde::Serialize;
 use serde_json::ser::{Formatter, PrettyFormatter};
@@ -40,26 +39,6 @@ pub fn json_text<T: Serialize + ?Sized>(value: &T) -> Result<(String, usize), se
     })?;
     text.push('\n');
     Ok((text, not_finite))
-}
-
-/// Writes `value` as [`json_text`] to `path` through `outputs` (whole or
-/// not at all, recorded as missing on failure); a value that was not
-/// finite is said on the error stream, naming the file.
-pub fn write_json<T: Serialize + ?Sized>(
-    outputs: &mut super::folder::Outputs,
-    path: &Path,
-    value: &T,
-) -> bool {
-    outputs.write(path, |p| {
-        let (text, not_finite) = json_text(value).map_err(|e| super::io_err(path, e))?;
-        if not_finite > 0 {
-            eprintln!(
-                "warning: {}: {not_finite} figure(s) could not be computed (not finite); written as \"{NOT_FINITE}\"",
-                path.display()
-            );
-        }
-        std::fs::write(p, text).map_err(|e| super::io_err(path, e))
-    })
 }
 
 /// `value` without the `null` members of its objects, at every depth: for

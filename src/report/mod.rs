@@ -32,12 +32,13 @@ pub mod provenance;
 pub mod rows;
 mod runner;
 
+pub use estimate::SolverEstimate;
 pub use files::{FolderReport, FolderSummary};
 pub use folder::{ExitStatus, RunFolder};
 pub use progress::Progress;
 pub use runner::{
-    Built, Outcome, Prepared, Recorded, Report, RunError, SolveTimings, Solved, SolverEstimate,
-    explicit_hint, prepare, run,
+    Built, Outcome, Prepared, Recorded, Report, RunError, SolveTimings, Solved, explicit_hint,
+    prepare, run,
 };
 
 use std::path::Path;

@@ -336,7 +336,7 @@ impl OatFiles {
         }
         let mut summary = self.summary(case, built, solved, explicit, folder);
         let path = self.out.join("summary.json");
-        super::json::write_json(folder.outputs_mut(), &path, &summary);
+        folder.outputs_mut().write_json(&path, &summary);
         summary.exit_status = folder.finish(&solved.status);
         summary.outputs_missing = folder.outputs().missing().to_vec();
         summary

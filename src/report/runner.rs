@@ -10,6 +10,7 @@
 
 use serde::Serialize;
 
+use super::estimate::SolverEstimate;
 use super::forming::readout::Readout;
 use super::progress::Progress;
 use super::rows::{FormingRow, HistoryRow, REPORTED_DISPLACEMENTS, forming_row};
@@ -22,9 +23,9 @@ use crate::post::fields::{ElementFields, area_mean, element_fields};
 use crate::solver::explicit::{ExplicitError, ExplicitTimings};
 use crate::solver::newton::{check_quasi_static, solve_quasi_static};
 use crate::solver::{
-    CancelToken, DofMap, ExplicitEstimate, ExplicitParameters, ExplicitRecord, ExplicitResult,
-    ExplicitSetUp, ExplicitState, NewtonParameters, QuasiStaticResult, RunStatus, Snapshot,
-    SolverTimings, set_up_explicit,
+    CancelToken, DofMap, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitSetUp,
+    ExplicitState, NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings,
+    set_up_explicit,
 };
 
 /// A case built into a model, as the reports see it during a run.
@@ -328,25 +329,6 @@ enum Stage {
         state: ExplicitState,
         final_load: f64,
     },
-}
-
-/// What a prepared run is expected to take, as its solver sees it before
-/// the first step.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(tag = "solver", rename_all = "kebab-case")]
-pub enum SolverEstimate {
-    /// Newton load steps: at least `min_steps` (the programme over the
-    /// largest increment, with the output stops); cut-backs add more.
-    QuasiStatic {
-        /// Fewest load steps the settings allow.
-        min_steps: usize,
-        /// Steps if the first increment is kept throughout.
-        initial_steps: usize,
-        /// Free unknowns.
-        unknowns: usize,
-    },
-    /// The explicit run's increments from its first stable step.
-    Explicit(ExplicitEstimate),
 }
 
 impl Prepared<'_> {
