@@ -182,9 +182,7 @@ impl Report for FolderReport<'_> {
 fn write_resolved_case(built: &Built, folder: &mut RunFolder) {
     let path = folder.path().join(super::provenance::RESOLVED_CASE_FILE);
     let document = super::provenance::resolved_case_document_of(built);
-    folder
-        .outputs_mut()
-        .write_json(&path, &super::json::without_nulls(document));
+    folder.outputs_mut().write_json(&path, &document);
 }
 
 /// Runs `case` into `report` and returns the summary it wrote.

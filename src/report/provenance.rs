@@ -58,6 +58,15 @@ enum Scenario<'a> {
     Forming(&'a FormingCase),
 }
 
+impl<'a> From<&'a Case> for Scenario<'a> {
+    fn from(case: &'a Case) -> Self {
+        match case {
+            Case::Oat(c) => Scenario::Oat(c),
+            Case::Forming(c) => Scenario::Forming(c),
+        }
+    }
+}
+
 /// Where a run came from.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Provenance {
@@ -112,10 +121,7 @@ impl Provenance {
     /// The provenance of a run of `case`: this build, and the files the
     /// case read hashed now.
     pub fn of(case: &Case) -> Self {
-        Self::of_scenario(match case {
-            Case::Oat(c) => Scenario::Oat(c),
-            Case::Forming(c) => Scenario::Forming(c),
-        })
+        Self::of_scenario(case.into())
     }
 
     fn of_scenario(case: Scenario) -> Self {
@@ -287,28 +293,32 @@ pub fn resolved_case(case: &Case) -> Value {
 }
 
 /// The content of [`RESOLVED_CASE_FILE`] for a run of `case`: its format,
-/// the provenance and the resolved case.
+/// the provenance, the case's warnings and the resolved case, without
+/// `null` members (an unset setting is left out).
 pub fn resolved_case_document(case: &Case) -> Value {
-    json!({
-        "format": RESOLVED_FORMAT,
-        "provenance": Provenance::of(case),
-        "warnings": warning_lines(case.warnings()),
-        "case": resolved_case(case),
-    })
+    document(case.into())
 }
 
 /// [`resolved_case_document`] of the case a run's reports see.
 pub fn resolved_case_document_of(built: &Built) -> Value {
-    let (scenario, case, warnings) = match built {
-        Built::Oat { case, .. } => (Scenario::Oat(case), oat(case), &case.warnings),
-        Built::Forming { case, .. } => (Scenario::Forming(case), forming(case), &case.warnings),
-    };
-    json!({
-        "format": RESOLVED_FORMAT,
-        "provenance": Provenance::of_scenario(scenario),
-        "warnings": warning_lines(warnings),
-        "case": case,
+    document(match built {
+        Built::Oat { case, .. } => Scenario::Oat(case),
+        Built::Forming { case, .. } => Scenario::Forming(case),
     })
+}
+
+/// [`resolved_case_document`] of a borrowed case of either scenario.
+fn document(case: Scenario) -> Value {
+    let (resolved, warnings) = match case {
+        Scenario::Oat(c) => (oat(c), &c.warnings),
+        Scenario::Forming(c) => (forming(c), &c.warnings),
+    };
+    super::json::without_nulls(json!({
+        "format": RESOLVED_FORMAT,
+        "provenance": Provenance::of_scenario(case),
+        "warnings": warning_lines(warnings),
+        "case": resolved,
+    }))
 }
 
 /// The case's warnings as the lines `ncform run` prints (without
