@@ -18,6 +18,7 @@ pub mod cli;
 pub mod config;
 pub mod contact;
 pub mod element;
+pub mod fit;
 pub mod material;
 pub mod mesh;
 pub mod model;
