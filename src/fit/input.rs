@@ -1265,6 +1265,70 @@ noise = { force = { relative = 0.02, absolute = 0.01 } }
     }
 
     #[test]
+    fn several_tests_with_dic_data_and_a_short_strain_column() {
+        let dir = folder();
+        // OAT45: one specimen with DIC strains (uniaxial stretch along y).
+        let mut dic = String::from("displacement [mm],force [N],Exx [-],Eyy [-],Exy [-]\n");
+        for k in 0..=40 {
+            let d = 2.0 * f64::from(k);
+            dic.push_str(&format!(
+                "{d},{},0,{},0\n",
+                0.03 * d,
+                0.5 * ((1.0 + d / 300.0).powi(2) - 1.0)
+            ));
+        }
+        write(dir.path(), "dic45.csv", &dic);
+        // OAT60: two specimens, the second's E22 ends at 50 mm.
+        let mut short = String::from("displacement [mm],force [N],E22 [-]\n");
+        for k in 0..=40 {
+            let d = 2.0 * f64::from(k);
+            let e22 = if d <= 50.0 {
+                format!("{}", 0.001 * d)
+            } else {
+                String::new()
+            };
+            short.push_str(&format!("{d},{},{e22}\n", 0.02 * d));
+        }
+        write(dir.path(), "short60.csv", &short);
+        let text = GOOD.to_string()
+            + "\n[[test]]\nname = \"forty-five\"\ncase = \"oat45.toml\"\nmeasured = \"dic45.csv\"\n"
+            + "noise = { force = 0.01, E22 = 0.002, shear_angle = 0.3, E_perp = 0.002 }\n"
+            + "\n[[test]]\ncase = \"oat60.toml\"\nmeasured = [\"a.csv\", \"short60.csv\"]\n"
+            + "noise = { force = 0.01 }\n";
+        let spec = load(dir.path(), &text).unwrap();
+        let names: Vec<&str> = spec.tests.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["oat30", "forty-five", "oat60"]);
+        let dic = &spec.tests[1];
+        assert_eq!(dic.measured.len(), 4);
+        let shear = dic.quantity(Quantity::ShearAngle).unwrap();
+        let d = dic.schedule[9];
+        let [_, expected, _] = crate::fit::measured::dic_to_measures(
+            0.0,
+            0.5 * ((1.0 + d / 300.0).powi(2) - 1.0),
+            0.0,
+            45.0,
+        )
+        .unwrap();
+        assert!(
+            (shear.values[9] - expected).abs() < 1e-4,
+            "{} vs {expected}",
+            shear.values[9]
+        );
+        assert!(shear.interpolation_error > 0.0 && shear.interpolation_error < 1e-3);
+        let sixty = &spec.tests[2];
+        assert_eq!(sixty.schedule.last(), Some(&50.0));
+        let e22 = sixty.quantity(Quantity::E22).unwrap();
+        assert_eq!(e22.replicates, 2);
+        assert!(
+            spec.warnings
+                .iter()
+                .any(|w| w.contains("test[2].measured: a strain column ends at 50 mm")),
+            "{:?}",
+            spec.warnings
+        );
+    }
+
+    #[test]
     fn knobs_offset_and_explicit_schedule() {
         let dir = folder();
         let text = GOOD.to_string()

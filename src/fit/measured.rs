@@ -222,7 +222,10 @@ impl ReplicateCurve {
     /// The bound `h²/8 · max|f″|` of the linear interpolation's error at
     /// `d` (0 outside the range, and for a curve of two rows: a line),
     /// with `h` the spacing of the measured interval holding `d` and `f″`
-    /// the larger second difference at its two ends.
+    /// the larger second difference at its two ends. The second
+    /// differences of noisy data hold the noise divided by `h²`, so on
+    /// noisy data the bound overestimates the error (it tends to about
+    /// the noise's size): read it as an upper bound.
     pub fn interpolation_bound(&self, d: f64) -> f64 {
         let Some(i) = self.interval(d) else {
             return 0.0;
@@ -292,8 +295,10 @@ pub struct MeasuredQuantity {
     /// How many replicates have the quantity (`m`).
     pub replicates: usize,
     /// The bound of the linear-interpolation error over the schedule
-    /// (`h²/8 · max|f″|`, the largest over the points and replicates), in
-    /// the quantity's unit.
+    /// (`h²/8 · max|f″|`, the largest over the points and replicates;
+    /// [`ReplicateCurve::interpolation_bound`]), in the quantity's unit.
+    /// An overestimate on noisy data, whose second differences hold the
+    /// noise.
     pub interpolation_error: f64,
     /// The replicates' measured curves.
     pub curves: Vec<ReplicateCurve>,
@@ -396,8 +401,11 @@ impl MeasuredQuantity {
     }
 
     /// `σ` of a mean with sample standard deviation `s`: with noise
-    /// `√((σ_model² + s²)/m)`, `σ_model` taken at the measured mean;
-    /// without `s/√m`; never below [`MeasuredQuantity::sigma_floor`].
+    /// `√((σ_model² + s²)/m)`, `σ_model` taken at the measured mean (the
+    /// relative part of the force noise weights the MEASURED force, not
+    /// the simulated one, so that `σ` does not depend on the parameters
+    /// and the cost stays a plain weighted least-squares sum); without
+    /// `s/√m`; never below [`MeasuredQuantity::sigma_floor`].
     fn sigma_of(&self, mean: f64, s: f64) -> f64 {
         let m = self.replicates as f64;
         let sigma = match self.noise {
@@ -615,7 +623,7 @@ pub fn parse_measured(
             file,
             lines.last().copied().unwrap_or(header_line),
             DISPLACEMENT_COLUMN,
-            format!("{} rows", displacement.len()),
+            format!("{} data row(s)", displacement.len()),
             "expected at least 2 data rows",
         ));
     }
@@ -888,7 +896,9 @@ mod tests {
     fn refuses_fewer_than_two_rows() {
         let m = message("# only one\ndisplacement [mm],force [N]\n0,0\n");
         assert!(
-            m.starts_with("m.csv:3: displacement [mm] = 1 rows: expected at least 2 data rows"),
+            m.starts_with(
+                "m.csv:3: displacement [mm] = 1 data row(s): expected at least 2 data rows"
+            ),
             "{m}"
         );
     }
