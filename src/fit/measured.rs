@@ -443,6 +443,11 @@ impl MeasuredQuantity {
     }
 }
 
+/// Largest magnitude of a measured cell: beyond it the replicates' mean
+/// and scatter could overflow; no clamp force in N, displacement in mm or
+/// strain is near it.
+pub const CELL_MAX: f64 = 1e15;
+
 /// What a measured file's column header stands for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Header {
@@ -558,14 +563,16 @@ pub fn parse_measured(
                 None
             } else {
                 match cell.parse::<f64>() {
-                    Ok(x) if x.is_finite() => Some(x),
+                    Ok(x) if x.is_finite() && x.abs() <= CELL_MAX => Some(x),
                     Ok(_) => {
                         return Err(cell_error(
                             file,
                             line,
                             name,
                             (*cell).to_string(),
-                            "expected a finite number",
+                            &format!(
+                                "expected a finite number (of magnitude at most {CELL_MAX:e})"
+                            ),
                         ));
                     }
                     Err(_) => {
@@ -849,6 +856,13 @@ mod tests {
         );
         let m = message("displacement [mm],force [N]\n0,0\ninf,1\n");
         assert!(m.starts_with("m.csv:3: displacement [mm] = inf"), "{m}");
+        let m = message("displacement [mm],force [N]\n0,0\n1,1e300\n");
+        assert!(
+            m.starts_with(
+                "m.csv:3: force [N] = 1e300: expected a finite number (of magnitude at most 1e15)"
+            ),
+            "{m}"
+        );
     }
 
     #[test]
