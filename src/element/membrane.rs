@@ -155,13 +155,35 @@ impl MembraneReference {
     ) -> Result<(MembraneKinematics, StressState, ElementVector), MaterialError> {
         let kin = self.kinematics(u);
         let state = material.stress(&kin.c, &self.frame)?;
+        let force = self.stress_force(&kin.g, &state.stress, thickness);
+        Ok((kin, state, force))
+    }
+
+    /// The nodal forces `f_a = t A0 B_aᵀ s` of a stress-like `s` (in
+    /// [`Sym2`] storage, reference basis) at the deformation `g` (the
+    /// columns of `F`): the internal force for `s = S`, its derivative
+    /// with respect to a law parameter at fixed `u` for `s = ∂S/∂p`.
+    #[inline]
+    pub fn stress_force(&self, g: &[Vector3<f64>; 2], s: &Sym2, thickness: f64) -> ElementVector {
         let scale = thickness * self.area;
         let mut force = ElementVector::zeros();
         for a in 0..3 {
-            let fa = scale * self.b_matrix(a, &kin.g).transpose() * state.stress;
+            let fa = scale * self.b_matrix(a, g).transpose() * s;
             force.fixed_rows_mut::<3>(3 * a).copy_from(&fa);
         }
-        Ok((kin, state, force))
+        force
+    }
+
+    /// `dg_i = Σ_a du_a ∂N_a/∂X_i`: the change of the columns of `F` for
+    /// a change `du` of the nodal displacements (`F` is linear in `u`).
+    #[inline]
+    pub fn deformation_change(&self, du: &[Vector3<f64>; 3]) -> [Vector3<f64>; 2] {
+        let mut dg = [Vector3::zeros(); 2];
+        for (d, grad) in du.iter().zip(&self.grad) {
+            dg[0] += d * grad.x;
+            dg[1] += d * grad.y;
+        }
+        dg
     }
 
     /// Energy, stress, internal force and consistent tangent

@@ -21,7 +21,10 @@ use crate::material::MaterialError;
 use crate::model::Model;
 use crate::post::fields::{ElementFields, area_mean, element_fields};
 use crate::solver::explicit::{ExplicitError, ExplicitTimings};
-use crate::solver::newton::{check_quasi_static, solve_quasi_static};
+use crate::solver::newton::{
+    ConvergedTangent, StepRecord, check_quasi_static, solve_quasi_static,
+    solve_quasi_static_with_tangent,
+};
 use crate::solver::{
     CancelToken, DofMap, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitSetUp,
     ExplicitState, NewtonParameters, QuasiStaticResult, RunStatus, Snapshot, SolverTimings,
@@ -104,6 +107,26 @@ pub trait Report: Send {
 
     /// The run failed before or while setting up the solve.
     fn fail(&mut self, error: &RunError);
+
+    /// Whether [`Report::tangent`] is wanted: the converged tangent at
+    /// every step of a quasi-static OAT, at the cost of one assembly and
+    /// one factorisation per step. Default: no.
+    fn wants_tangent(&self) -> bool {
+        false
+    }
+
+    /// At every converged step of a quasi-static OAT (after
+    /// [`Report::record`]), when [`Report::wants_tangent`]: the step, the
+    /// state and the tangent there, factorised, for sensitivities by direct
+    /// differentiation (`docs/fit.md`).
+    fn tangent(
+        &mut self,
+        _built: &Built,
+        _step: &StepRecord,
+        _snapshot: &Snapshot,
+        _tangent: &mut ConvergedTangent,
+    ) {
+    }
 }
 
 /// Either solver's time split \[s\].
@@ -715,21 +738,42 @@ fn solve_oat<R: Report>(
         } => {
             let mut u = vec![0.0; dofs.total];
             let params = newton_parameters(&params, cancel);
-            let result = solve_quasi_static(
-                model,
-                dofs,
-                &params,
-                final_load,
-                &stops,
-                &mut u,
-                |record, snapshot| {
-                    let detail = format!("step {}, {} iterations", record.step, record.iterations);
-                    progress.update(record.load, record.reaction, &detail, final_load);
-                    recorder.record(record.load, record.reaction, snapshot.u, |row| {
-                        row.iterations = Some(record.iterations);
-                    });
-                },
-            )
+            let on_step = |recorder: &mut OatRecorder<R>,
+                           progress: &mut Progress,
+                           record: &StepRecord,
+                           snapshot: &Snapshot| {
+                let detail = format!("step {}, {} iterations", record.step, record.iterations);
+                progress.update(record.load, record.reaction, &detail, final_load);
+                recorder.record(record.load, record.reaction, snapshot.u, |row| {
+                    row.iterations = Some(record.iterations);
+                });
+            };
+            let result = if recorder.report.wants_tangent() {
+                solve_quasi_static_with_tangent(
+                    model,
+                    dofs,
+                    &params,
+                    final_load,
+                    &stops,
+                    &mut u,
+                    |record, snapshot, tangent| {
+                        on_step(recorder, progress, record, snapshot);
+                        recorder
+                            .report
+                            .tangent(recorder.view, record, snapshot, tangent);
+                    },
+                )
+            } else {
+                solve_quasi_static(
+                    model,
+                    dofs,
+                    &params,
+                    final_load,
+                    &stops,
+                    &mut u,
+                    |record, snapshot| on_step(recorder, progress, record, snapshot),
+                )
+            }
             .map_err(RunError::QuasiStatic)?;
             Ok(quasi_static_solved(result))
         }

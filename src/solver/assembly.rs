@@ -143,6 +143,41 @@ impl Assembler {
         }
     }
 
+    /// `out = K x` over every dof (free and constrained) from the stencil
+    /// tangents of the last [`Assembler::force_tangent`] (`x`, `out`: all
+    /// dofs): each term's stencil matrices times `x`, summed into `out`.
+    pub fn tangent_product(&self, x: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for buffers in &self.terms {
+            let size = buffers.size;
+            if size == 0 {
+                continue;
+            }
+            for (tangent, dofs) in buffers
+                .tangent
+                .chunks_exact(size * size)
+                .zip(buffers.dofs.chunks_exact(size))
+            {
+                // Column-major by stencil: entry (a, b) at `size * b + a`,
+                // as the slots are laid out.
+                for (b, &db) in dofs.iter().enumerate() {
+                    if db == NONE {
+                        continue;
+                    }
+                    let xb = x[db];
+                    if xb == 0.0 {
+                        continue;
+                    }
+                    for (a, &da) in dofs.iter().enumerate() {
+                        if da != NONE {
+                            out[da] += tangent[size * b + a] * xb;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Number of stored non-zeros of the free-dof tangent.
     pub fn nnz(&self) -> usize {
         self.symbolic.row_idx().len()

@@ -23,7 +23,8 @@ pub use explicit::{
 };
 pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
-    NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings, Stabilisation,
-    StabilisationRecord, StepRecord, check_quasi_static, solve_quasi_static,
+    ConvergedTangent, NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings,
+    Stabilisation, StabilisationRecord, StepRecord, check_quasi_static, solve_quasi_static,
+    solve_quasi_static_with_tangent,
 };
 pub use status::{RunStatus, Snapshot};

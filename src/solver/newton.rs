@@ -832,12 +832,126 @@ pub fn solve_quasi_static(
     mut on_step: impl FnMut(&StepRecord, &Snapshot),
 ) -> Result<QuasiStaticResult, QuasiStaticSetupError> {
     let mut run = QuasiStaticRun::set_up(model, dofs, params, final_load, stops, u)?;
+    let mut observe =
+        |record: &StepRecord, snapshot: &Snapshot, _: Option<&mut ConvergedTangent>| {
+            on_step(record, snapshot)
+        };
     let status = loop {
-        if let ControlFlow::Break(status) = run.step(&mut on_step) {
+        if let ControlFlow::Break(status) = run.step(&mut observe, false) {
             break status;
         }
     };
     Ok(run.wind_down(status))
+}
+
+/// [`solve_quasi_static`], handing `on_step` also the tangent at every
+/// converged state, assembled there again and factorised once
+/// ([`ConvergedTangent`]): what direct differentiation needs, `K du/dp =
+/// −∂R/∂p` with one back-substitution per parameter
+/// (`docs/fit.md`, "Sensitivities"). One assembly and one factorisation
+/// per converged step on top of the solve; the factorisations are counted
+/// in the result.
+///
+/// # Errors
+/// As [`solve_quasi_static`].
+pub fn solve_quasi_static_with_tangent(
+    model: &mut Model,
+    dofs: DofMap,
+    params: &NewtonParameters,
+    final_load: f64,
+    stops: &[f64],
+    u: &mut [f64],
+    mut on_step: impl FnMut(&StepRecord, &Snapshot, &mut ConvergedTangent),
+) -> Result<QuasiStaticResult, QuasiStaticSetupError> {
+    let mut run = QuasiStaticRun::set_up(model, dofs, params, final_load, stops, u)?;
+    let mut observe =
+        |record: &StepRecord, snapshot: &Snapshot, tangent: Option<&mut ConvergedTangent>| {
+            if let Some(tangent) = tangent {
+                on_step(record, snapshot, tangent);
+            }
+        };
+    let status = loop {
+        if let ControlFlow::Break(status) = run.step(&mut observe, true) {
+            break status;
+        }
+    };
+    Ok(run.wind_down(status))
+}
+
+/// The tangent `K = ∂r/∂u` at a converged state, assembled there and
+/// factorised once: solves with it on the free dofs, and products with
+/// the whole tangent of every term's stencils (constrained rows too, for
+/// the reactions' sensitivities).
+pub struct ConvergedTangent<'s> {
+    solver: &'s mut SparseSolver,
+    assembler: &'s Assembler,
+    timings: &'s mut SolverTimings,
+    factorised: Result<(), LinearSolverError>,
+}
+
+impl ConvergedTangent<'_> {
+    /// The free dofs, in the order of the vectors [`ConvergedTangent::solve`]
+    /// takes.
+    pub fn free_dofs(&self) -> &[usize] {
+        &self.assembler.dofs.free
+    }
+
+    /// The constrained dofs with their displacement per unit load.
+    pub fn constrained(&self) -> &[super::Dirichlet] {
+        &self.assembler.dofs.constrained
+    }
+
+    /// Solves `K_ff x = rhs` in place (free dofs, in the order of
+    /// [`ConvergedTangent::free_dofs`]).
+    ///
+    /// # Errors
+    /// A singular tangent (the factorisation failed) or a non-finite
+    /// solution.
+    pub fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearSolverError> {
+        self.factorised.clone()?;
+        let start = Instant::now();
+        let result = self.solver.solve_in_place(rhs);
+        self.timings.solve += start.elapsed().as_secs_f64();
+        result
+    }
+
+    /// `out = K_ff x` on the free dofs (the factorised matrix).
+    pub fn multiply_free(&self, x: &[f64], out: &mut [f64]) {
+        let matrix = self.solver.matrix.as_ref();
+        let (col_ptr, row_idx, values) = (
+            matrix.symbolic().col_ptr(),
+            matrix.symbolic().row_idx(),
+            matrix.val(),
+        );
+        out.fill(0.0);
+        for (j, xj) in x.iter().enumerate() {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                out[row_idx[k]] += values[k] * xj;
+            }
+        }
+    }
+
+    /// `‖K_ff‖₁`, the largest column sum of absolute values.
+    pub fn norm_one(&self) -> f64 {
+        let matrix = self.solver.matrix.as_ref();
+        let col_ptr = matrix.symbolic().col_ptr();
+        let values = matrix.val();
+        (0..col_ptr.len() - 1)
+            .map(|j| {
+                values[col_ptr[j]..col_ptr[j + 1]]
+                    .iter()
+                    .map(|v| v.abs())
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// `out = K x` over every dof, free and constrained, from the terms'
+    /// stencil tangents at the converged state (`x`, `out`: all dofs):
+    /// the rows of the constrained dofs give `dr_c = K_cf dx_f + K_cc dx_c`.
+    pub fn multiply_all(&self, x: &[f64], out: &mut [f64]) {
+        self.assembler.tangent_product(x, out);
+    }
 }
 
 /// The checks of [`solve_quasi_static`]'s set-up that need no matrix: the
@@ -1064,7 +1178,11 @@ impl<'a> QuasiStaticRun<'a> {
     /// land on the next stop), the mass term, the Newton solves, then the
     /// accepted state and its output, or a cut-back. Breaks with the run's
     /// status.
-    fn step(&mut self, on_step: &mut impl FnMut(&StepRecord, &Snapshot)) -> ControlFlow<RunStatus> {
+    fn step(
+        &mut self,
+        on_step: &mut impl FnMut(&StepRecord, &Snapshot, Option<&mut ConvergedTangent>),
+        with_tangent: bool,
+    ) -> ControlFlow<RunStatus> {
         if self.load >= self.final_load - self.tiny {
             return ControlFlow::Break(RunStatus::Complete);
         }
@@ -1097,7 +1215,14 @@ impl<'a> QuasiStaticRun<'a> {
             Ok(solved) => {
                 let (iterations, augmentations) = (solved.iterations, solved.augmentations);
                 let (reaction, stabilisation) = self.accept(&plan, augmentations);
-                self.output(&plan, reaction, stabilisation, solved, on_step);
+                self.output(
+                    &plan,
+                    reaction,
+                    stabilisation,
+                    solved,
+                    on_step,
+                    with_tangent,
+                );
                 self.next_increment(&plan, iterations, augmentations);
                 ControlFlow::Continue(())
             }
@@ -1280,7 +1405,8 @@ impl<'a> QuasiStaticRun<'a> {
         reaction: f64,
         stabilisation: Option<StabilisationRecord>,
         solved: Solved,
-        on_step: &mut impl FnMut(&StepRecord, &Snapshot),
+        on_step: &mut impl FnMut(&StepRecord, &Snapshot, Option<&mut ConvergedTangent>),
+        with_tangent: bool,
     ) {
         let (load, internal_energy) = (self.load, self.internal_energy);
         if trace() {
@@ -1303,14 +1429,60 @@ impl<'a> QuasiStaticRun<'a> {
             internal_energy,
             stabilisation,
         };
-        on_step(
-            &record,
-            &Snapshot {
-                u: self.u,
-                residual: &self.newton.work.internal,
-                model: self.newton.model,
-            },
-        );
+        if with_tangent {
+            // The tangent at the accepted state, assembled again (the
+            // solver's copy may be shifted or from a trial point), into
+            // the line search's scratch so that the residual stays.
+            let newton = &mut self.newton;
+            let mut scratch = std::mem::take(&mut newton.work.trial_internal);
+            let start = Instant::now();
+            let state = newton.state(self.u);
+            let assembled = newton.assembler.force_tangent(
+                newton.model,
+                &state,
+                &mut scratch,
+                newton.solver.values_mut(),
+            );
+            newton.timings.assembly += start.elapsed().as_secs_f64();
+            newton.work.trial_internal = scratch;
+            let factorised = match assembled {
+                Ok(_) => newton.factorize(),
+                Err(failure) => Err(LinearSolverError::Other(failure.to_string())),
+            };
+            let Newton {
+                model,
+                assembler,
+                solver,
+                work,
+                timings,
+                ..
+            } = newton;
+            let mut tangent = ConvergedTangent {
+                solver,
+                assembler,
+                timings,
+                factorised,
+            };
+            on_step(
+                &record,
+                &Snapshot {
+                    u: self.u,
+                    residual: &work.internal,
+                    model,
+                },
+                Some(&mut tangent),
+            );
+        } else {
+            on_step(
+                &record,
+                &Snapshot {
+                    u: self.u,
+                    residual: &self.newton.work.internal,
+                    model: self.newton.model,
+                },
+                None,
+            );
+        }
         self.steps.push(record);
     }
 

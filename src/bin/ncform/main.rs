@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use ncform::cli::check::check_command;
+use ncform::cli::fit::fit_command;
 use ncform::cli::run::run_command;
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::material::MaterialSpec;
@@ -54,6 +55,23 @@ enum Command {
     Check {
         /// The case file (TOML), e.g. cases/oat45.toml.
         case: PathBuf,
+    },
+    /// Identify a fabric's law parameters from its measured off-axis
+    /// tension tests (force and MDZ strains): bounded Levenberg–Marquardt
+    /// on exact sensitivities, with what the data determine (1σ,
+    /// correlations, weak combinations, warnings). Writes fitted.toml,
+    /// fit.json, fit.csv, fit_curves.csv and pictures (docs/fit.md). Exit:
+    /// 0 converged, 1 bad input, 3 not converged (best point written), 4
+    /// interrupted, 5 outputs missing.
+    Fit {
+        /// The fit file (TOML), e.g. cases/fit/fit.toml.
+        fit: PathBuf,
+        /// Output folder (default: out/<fit file name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress output.
+        #[arg(long)]
+        quiet: bool,
     },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
@@ -181,6 +199,11 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
         Command::Run { case, out, quiet } => {
             let status =
                 run_command(&case, out, quiet, &cancel_on_signals()).map_err(|e| e.to_string())?;
+            Ok(exit(status))
+        }
+        Command::Fit { fit, out, quiet } => {
+            let status =
+                fit_command(&fit, out, quiet, &cancel_on_signals()).map_err(|e| e.to_string())?;
             Ok(exit(status))
         }
         Command::Check { case } => {
