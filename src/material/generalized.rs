@@ -118,6 +118,12 @@ impl GeneralizedTerm {
         self.x_t
     }
 
+    /// The exponent coefficient `c = C_ini / ΔS_mid` of the middle branch
+    /// (zero without a transition), the value [`GeneralizedTerm::eval`] uses.
+    pub(super) fn rate(&self) -> f64 {
+        self.rate
+    }
+
     /// The branch of Eq. (12) at `x`, with the same one-sided convention as
     /// [`GeneralizedTerm::eval`] (a boundary belongs to the upper branch).
     pub fn branch(&self, x: f64) -> TermBranch {
@@ -268,7 +274,7 @@ impl GeneralizedTerm {
 /// below, `expm1` gives `1 − e^(−z) ≤ ½` and `e^(−z) = 1 − that` is exact
 /// to round-off.
 #[inline(always)]
-fn decay_pair(z: f64) -> (f64, f64) {
+pub(super) fn decay_pair(z: f64) -> (f64, f64) {
     if z > std::f64::consts::LN_2 {
         let decay = (-z).exp();
         (decay, 1.0 - decay)
@@ -282,7 +288,7 @@ fn decay_pair(z: f64) -> (f64, f64) {
 /// the series `Σ_{n≥2} (−1)ⁿ (n−1) zⁿ / n!` below 0.1, the closed form
 /// `(1 − e^(−z)) − z e^(−z)` above, from the pair of [`decay_pair`].
 #[inline]
-fn one_minus_decay_times_one_plus(z: f64, decay: f64, one_minus_decay: f64) -> f64 {
+pub(super) fn one_minus_decay_times_one_plus(z: f64, decay: f64, one_minus_decay: f64) -> f64 {
     if z < 0.1 {
         // Terms n = 2..=9; the first omitted term is below 1e-10 · z²/2.
         let mut term = z * z / 2.0; // zⁿ/n! for n = 2

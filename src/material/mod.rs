@@ -1,6 +1,7 @@
 //! Membrane material laws: pseudo-invariants, the generalized energy, the
 //! UD-NCF law of Schäfer et al. (2024) with its consistent tangent, an
-//! orthotropic St Venant–Kirchhoff law, and parameter files.
+//! orthotropic St Venant–Kirchhoff law, parameter files, and the exact
+//! derivatives of the stress with respect to the law's parameters.
 //!
 //! The laws know nothing of meshes or elements: they map `C` (2×2, in an
 //! orthonormal reference frame) and a [`FibreFrame`] to `W`, `S` and `ℂ`.
@@ -13,6 +14,7 @@ pub mod invariants;
 pub mod lanes;
 pub mod law;
 pub mod params;
+pub mod sensitivity;
 pub mod svk;
 pub mod udncf;
 
@@ -22,6 +24,7 @@ pub use generalized::{GeneralizedTerm, Lock, TermBranch, Transition};
 pub use invariants::Invariants;
 pub use law::{MembraneMaterial, StressState, Tangent};
 pub use params::{MaterialSpec, ParamsError};
+pub use sensitivity::{CouplingParameter, LawParameter, TermName, TermParameter};
 pub use svk::OrthotropicSvk;
 pub use udncf::{Branches, UdNcf};
 
