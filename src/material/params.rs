@@ -16,9 +16,10 @@ use toml::Spanned;
 use super::Material;
 use super::coupling::Coupling;
 use super::generalized::{GeneralizedTerm, Lock, Transition};
+use super::sensitivity::{LawParameter, TermParameter};
 use super::svk::OrthotropicSvk;
 use super::udncf::UdNcf;
-use crate::config::{ConfigError, TomlChecker, parse_toml};
+use crate::config::{ConfigError, TomlChecker, parse_toml, readable_number};
 
 /// The named parameter sets: `(name, TOML text)`. The first is the default.
 pub const NAMED_SETS: &[(&str, &str)] = &[
@@ -401,6 +402,133 @@ impl MaterialSpec {
         values
     }
 
+    /// A copy of the set with the given UD-NCF parameters set to new values
+    /// (a later entry for the same parameter wins), validated by exactly the
+    /// rules of a parameter file: the set is written as TOML with the new
+    /// values and read back with [`MaterialSpec::from_toml_str`]. Name,
+    /// description and source are kept.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`] naming the key and the value: a value out of
+    /// its range (as a parameter file would be refused), or a parameter the
+    /// set does not have (a transition or lock key of a term without one,
+    /// any key of an orthotropic-svk set), with how to add it.
+    pub fn with_parameters(
+        &self,
+        values: &[(LawParameter, f64)],
+    ) -> Result<MaterialSpec, ParamsError> {
+        let source = format!("{} with edited parameters", self.source);
+        let mut current = self.parameter_values();
+        for &(p, value) in values {
+            let key = p.key();
+            match current.iter_mut().find(|(k, _)| *k == key) {
+                Some(entry) => entry.1 = value,
+                None => {
+                    return Err(ConfigError::Invalid {
+                        source,
+                        line: 0,
+                        expected: self.absent_parameter(p),
+                        key,
+                        value: readable_number(value),
+                    });
+                }
+            }
+        }
+        let text = self.toml_text("", &current);
+        let mut spec = Self::from_toml_str(&text, &source).map_err(|e| match e {
+            // The line is one of the generated text, which nobody sees.
+            ConfigError::Invalid {
+                source,
+                key,
+                value,
+                expected,
+                ..
+            } => ConfigError::Invalid {
+                source,
+                line: 0,
+                key,
+                value,
+                expected,
+            },
+            other => other,
+        })?;
+        spec.source = self.source.clone();
+        Ok(spec)
+    }
+
+    /// Why `p` is not a parameter of this set, and how to add it.
+    fn absent_parameter(&self, p: LawParameter) -> String {
+        let (LawParameter::Term(term, parameter), Material::UdNcf(_)) = (p, &self.material) else {
+            return format!(
+                "a parameter of this set: it is a \"{}\" set, which has no UD-NCF parameters",
+                self.law_name()
+            );
+        };
+        let table = term.key();
+        match parameter {
+            TermParameter::CLock | TermParameter::ILock => format!(
+                "a parameter of this set: [{table}] has no lock; to add one, give c_lock and \
+                 i_lock together in the [{table}] table of a parameter file (MaterialSpec::to_toml \
+                 writes the set as one) and load that file"
+            ),
+            _ => format!(
+                "a parameter of this set: [{table}] has no transition; to add one, give s_ini, \
+                 c_mid and delta_s_mid together in the [{table}] table of a parameter file \
+                 (MaterialSpec::to_toml writes the set as one) and load that file"
+            ),
+        }
+    }
+
+    /// The set as a complete parameter file: `header` as leading comment
+    /// lines (each line prefixed with `# `), then `law`, `name`,
+    /// `description` and every table with every key the set has. Numbers
+    /// are written in Rust's shortest round-trip form (always as TOML
+    /// floats, `1000.0`, `1e-7`), so [`MaterialSpec::from_toml_str`] reads
+    /// the same law back bit for bit. Control characters in `header` (other
+    /// than tab) are written as spaces, so the comment stays valid TOML.
+    pub fn to_toml(&self, header: &str) -> String {
+        self.toml_text(header, &self.parameter_values())
+    }
+
+    /// [`MaterialSpec::to_toml`] with the given `table.key` values (in table
+    /// order) in place of the set's own.
+    fn toml_text(&self, header: &str, values: &[(String, f64)]) -> String {
+        let mut out = String::new();
+        for line in header.lines() {
+            let line: String = line
+                .chars()
+                .map(|c| if c.is_control() && c != '\t' { ' ' } else { c })
+                .collect();
+            let line = line.trim_end();
+            if line.is_empty() {
+                out.push_str("#\n");
+            } else {
+                out.push_str("# ");
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        out.push_str(&format!("law = {}\n", toml_string(self.law_name())));
+        out.push_str(&format!("name = {}\n", toml_string(&self.name)));
+        out.push_str(&format!(
+            "description = {}\n",
+            toml_string(&self.description)
+        ));
+        let mut table = "";
+        for (key, value) in values {
+            let (t, k) = key.split_once('.').unwrap_or(("", key));
+            if t != table {
+                out.push_str(&format!("\n[{t}]\n"));
+                table = t;
+            }
+            out.push_str(&format!("{k} = {}\n", toml_float(*value)));
+        }
+        out
+    }
+
     /// The TOML text of a named set, if `name` is one.
     pub fn named_text(name: &str) -> Option<&'static str> {
         NAMED_SETS.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
@@ -442,5 +570,225 @@ impl MaterialSpec {
         let source = path.display().to_string();
         let text = crate::config::utf8_text(bytes, &source)?;
         Self::from_toml_str(&text, &source)
+    }
+}
+
+/// `x` as a TOML float that parses back to the same bits: Rust's shortest
+/// round-trip form (`{:?}`), with `.0` added to an integer (`1000.0`), and
+/// `nan`, `inf`, `-inf` as TOML spells them.
+fn toml_float(x: f64) -> String {
+    if x.is_nan() {
+        return "nan".into();
+    }
+    if x.is_infinite() {
+        return if x > 0.0 { "inf".into() } else { "-inf".into() };
+    }
+    let text = format!("{x:?}");
+    if text.contains(['.', 'e', 'E']) {
+        text
+    } else {
+        text + ".0"
+    }
+}
+
+/// `s` as a TOML basic string: quotes, backslashes and control characters
+/// escaped.
+fn toml_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            '\r' => out.push_str("\\r"),
+            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::sensitivity::CouplingParameter;
+
+    const SVK: &str = r#"
+law = "orthotropic-svk"
+name = "svk-test"
+description = "a cross-check set"
+[svk]
+e1 = 1000.0
+e2 = 3.0
+nu12 = 0.1
+g12 = 0.25
+"#;
+
+    fn p(key: &str) -> LawParameter {
+        LawParameter::from_key(key).expect("a known key")
+    }
+
+    fn bits(spec: &MaterialSpec) -> Vec<(String, u64)> {
+        spec.parameter_values()
+            .into_iter()
+            .map(|(k, v)| (k, v.to_bits()))
+            .collect()
+    }
+
+    fn round_trip(spec: &MaterialSpec, header: &str) -> MaterialSpec {
+        let text = spec.to_toml(header);
+        MaterialSpec::from_toml_str(&text, "round-trip")
+            .unwrap_or_else(|e| panic!("{e}\n--- text ---\n{text}"))
+    }
+
+    #[test]
+    fn to_toml_round_trips_the_named_sets_and_an_svk_set_exactly() {
+        let mut sets: Vec<MaterialSpec> = NAMED_SETS
+            .iter()
+            .map(|(n, _)| MaterialSpec::named(n).expect("named"))
+            .collect();
+        sets.push(MaterialSpec::from_toml_str(SVK, "svk-test").expect("valid"));
+        for spec in &sets {
+            let back = round_trip(spec, "written by a test\n\nsecond line");
+            assert_eq!(back.material, spec.material, "{}", spec.name);
+            assert_eq!(back.name, spec.name);
+            assert_eq!(back.description, spec.description);
+            assert_eq!(bits(&back), bits(spec));
+            let text = spec.to_toml("written by a test\n\nsecond line");
+            assert!(text.starts_with("# written by a test\n#\n# second line\n"));
+            assert!(text.contains(&format!("law = \"{}\"", spec.law_name())));
+        }
+        // Integers are written as floats.
+        assert!(sets[0].to_toml("").contains("c_ini = 1000.0\n"));
+        assert!(!sets[0].to_toml("").starts_with('#'));
+    }
+
+    #[test]
+    fn to_toml_keeps_awkward_numbers_and_text_bit_for_bit() {
+        let spec = MaterialSpec::default_set();
+        let edited = spec
+            .with_parameters(&[
+                (p("w6.c_ini"), 0.1 + 0.2),
+                (p("w8.c_lock"), 1e12),
+                (p("w11.c_mid"), 1e-12),
+                (p("w4.c_ini"), 123456789012.5),
+                (p("coupling.k_min"), 0.0),
+            ])
+            .err();
+        // w8 has no lock in the default set: refused, nothing else changed.
+        assert!(edited.is_some());
+        let mut edited = spec
+            .with_parameters(&[
+                (p("w6.c_ini"), 0.1 + 0.2),
+                (p("w8.c_mid"), 1e12),
+                (p("w11.c_mid"), 1e-12),
+                (p("w4.c_ini"), 123456789012.5),
+                (p("coupling.k_min"), 0.0),
+                (p("coupling.e11"), 1.0 + f64::EPSILON),
+            ])
+            .expect("valid values");
+        edited.name = "a \"quoted\" name \\ with\ttab".into();
+        edited.description = "two\nlines and a bell \u{7} and é".into();
+        let back = round_trip(&edited, "header with a stray \r carriage return");
+        assert_eq!(back.material, edited.material);
+        assert_eq!(bits(&back), bits(&edited));
+        assert_eq!(back.name, edited.name);
+        assert_eq!(back.description, edited.description);
+    }
+
+    #[test]
+    fn with_parameters_sets_the_values_and_derives_the_rest() {
+        let spec = MaterialSpec::default_set();
+        let edited = spec
+            .with_parameters(&[
+                (p("w6.c_ini"), 0.2),
+                (p("w11.i_lock"), 0.35),
+                (LawParameter::Coupling(CouplingParameter::E11), 1.5),
+                (p("w6.c_ini"), 0.25),
+            ])
+            .expect("valid values");
+        let Material::UdNcf(law) = edited.material else {
+            panic!("ud-ncf");
+        };
+        assert_eq!(law.w6.c_ini, 0.25, "the later entry wins");
+        assert_eq!(law.w6.transition_point(), 0.018 / 0.25);
+        assert_eq!(law.w11.lock.map(|l| l.i_lock), Some(0.35));
+        assert_eq!(law.coupling.e11, 1.5);
+        assert_eq!(
+            (edited.name.as_str(), edited.source.as_str()),
+            ("schaefer2024", "schaefer2024")
+        );
+        // Everything else as it was.
+        let changed: Vec<String> = spec
+            .parameter_values()
+            .into_iter()
+            .zip(edited.parameter_values())
+            .filter(|(a, b)| a.1.to_bits() != b.1.to_bits())
+            .map(|(a, _)| a.0)
+            .collect();
+        assert_eq!(changed, ["w6.c_ini", "w11.i_lock", "coupling.e11"]);
+        assert_eq!(spec.with_parameters(&[]).expect("unchanged"), spec);
+    }
+
+    #[test]
+    fn with_parameters_refuses_out_of_range_values_naming_key_and_value() {
+        let spec = MaterialSpec::default_set();
+        for (key, value, shown, rule) in [
+            ("coupling.k_min", 1.5, "= 1.5", "[0, 1]"),
+            ("w6.c_ini", -1.0, "= -1", "> 0"),
+            ("coupling.e11", 0.5, "= 0.5", "≥ 1"),
+            ("w8.delta_s_mid", f64::NAN, "= nan", "> 0"),
+            ("w4.c_ini", 1e300, "= 1e300", "magnitude"),
+        ] {
+            let err = spec
+                .with_parameters(&[(p(key), value)])
+                .expect_err("out of range");
+            let message = err.to_string();
+            assert!(
+                message.contains(&format!("{key} {shown}")) && message.contains(rule),
+                "{message}"
+            );
+            assert!(
+                matches!(err, ConfigError::Invalid { line: 0, .. }),
+                "{err:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn with_parameters_refuses_a_parameter_the_set_does_not_have() {
+        let spec = MaterialSpec::default_set();
+        let message = spec
+            .with_parameters(&[(p("w6.c_lock"), 3.0)])
+            .expect_err("w6 has no lock")
+            .to_string();
+        assert!(
+            message.contains("w6.c_lock = 3")
+                && message.contains("[w6] has no lock")
+                && message.contains("c_lock and i_lock together"),
+            "{message}"
+        );
+        let message = spec
+            .with_parameters(&[(p("w4.s_ini"), 3.0)])
+            .expect_err("w4 has no transition")
+            .to_string();
+        assert!(
+            message.contains("w4.s_ini = 3")
+                && message.contains("[w4] has no transition")
+                && message.contains("s_ini, c_mid and delta_s_mid together"),
+            "{message}"
+        );
+        let svk = MaterialSpec::from_toml_str(SVK, "svk-test").expect("valid");
+        let message = svk
+            .with_parameters(&[(p("coupling.k_min"), 0.5)])
+            .expect_err("an svk set")
+            .to_string();
+        assert!(
+            message.contains("orthotropic-svk") && message.contains("coupling.k_min"),
+            "{message}"
+        );
     }
 }
