@@ -13,6 +13,8 @@
 //! conventions of [`UdNcf::evaluate_invariants`]: the derivatives are those of
 //! the function the code evaluates, on the branch it takes.
 //!
+//! The formulas and their numerics are derived in `docs/theory.md` §12.
+//!
 //! Parameters are named by [`LawParameter`], whose keys are those of a
 //! parameter file (`w6.c_ini`, `coupling.k_min`, see
 //! [`super::MaterialSpec::parameter_values`]).
@@ -336,7 +338,8 @@ impl GeneralizedTerm {
     /// initial branch only `C_ini` acts, `(½x², x)`; the lock adds
     /// `(d³/3, d²)` for `C_lock` and `(−C_lock d², −2 C_lock d)` for
     /// `I_lock`, `d = x − I_lock ≥ 0`. A parameter the term does not have,
-    /// or one that does not act on the branch, gives `(0, 0)`.
+    /// or one that does not act on the branch, gives `(0, 0)`. Derivation:
+    /// `docs/theory.md` §12.
     pub fn parameter_derivative(&self, x: f64, p: TermParameter) -> (f64, f64) {
         match p {
             TermParameter::CLock | TermParameter::ILock => {
