@@ -41,6 +41,11 @@ pub struct LmSettings {
     pub tolerance: f64,
     /// Starting damping `λ`.
     pub initial_damping: f64,
+    /// Stop when the data carry noise (`χ² ≥ ½ (n − p)`) and an accepted
+    /// step lowers `χ² = 2 cost` by less than this: the parameters then
+    /// move by less than about `√(change)` of their σ (a change of χ² by 1
+    /// is a 1σ move), which no reader of the result can see. 0: off.
+    pub chi2_change: f64,
 }
 
 impl Default for LmSettings {
@@ -49,6 +54,7 @@ impl Default for LmSettings {
             max_iterations: 50,
             tolerance: 1e-6,
             initial_damping: 1e-3,
+            chi2_change: 0.01,
         }
     }
 }
@@ -75,7 +81,8 @@ pub struct LmIteration {
 /// Why the iterations stopped.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LmStop {
-    /// The relative cost decrease of an accepted step fell below the tolerance.
+    /// The relative cost decrease of an accepted step fell below the
+    /// tolerance, or (noisy data) its decrease of χ² below `chi2_change`.
     CostConverged,
     /// The step fell below the tolerance.
     StepConverged,
@@ -263,7 +270,11 @@ pub fn minimise(
                         failure: None,
                     });
                     on_iteration(history.last().expect("just pushed"));
-                    if decrease < settings.tolerance {
+                    let dof = current.residual.len().saturating_sub(n) as f64;
+                    let noisy = 2.0 * current_cost >= 0.5 * dof && dof > 0.0;
+                    let chi2_drop = 2.0 * (history[history.len() - 2].cost - current_cost);
+                    if decrease < settings.tolerance || (noisy && chi2_drop < settings.chi2_change)
+                    {
                         stop = LmStop::CostConverged;
                         break;
                     }

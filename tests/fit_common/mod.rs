@@ -72,12 +72,17 @@ pub fn truth() -> MaterialSpec {
 
 /// `(d, F, E22, γ, E⊥)` of the case at `angle` with `material` at the
 /// schedule, from the one runner.
-pub fn synthetic(dir: &Path, angle: f64, material: &MaterialSpec) -> Vec<[f64; 5]> {
+pub fn synthetic(
+    dir: &Path,
+    angle: f64,
+    material: &MaterialSpec,
+    displacements: &[f64],
+) -> Vec<[f64; 5]> {
     let path = dir.join(format!("oat{angle}.toml"));
     let mut case = OatCase::from_toml_str(&coarse_case(angle), &path.display().to_string(), dir)
         .expect("the coarse case");
     case.material = material.clone();
-    case.output_displacements = schedule();
+    case.output_displacements = displacements.to_vec();
     case.solver.residual_tolerance = 1e-10;
     let mut report = MemoryReport::new();
     run(
@@ -87,7 +92,7 @@ pub fn synthetic(dir: &Path, angle: f64, material: &MaterialSpec) -> Vec<[f64; 5
         &CancelToken::default(),
     )
     .expect("the synthetic run");
-    schedule()
+    displacements
         .iter()
         .map(|d| {
             let row = report
@@ -128,15 +133,34 @@ impl Normal {
     }
 }
 
-/// Writes the cases, the measured files (with noise from `seed`, none for
-/// `None`) and a fit file freeing `free`; `strains` adds the MDZ columns.
-pub fn write_fit(
-    dir: &Path,
-    free: &[&str],
-    strains: bool,
-    seed: Option<u64>,
-    start_at_truth: bool,
-) -> PathBuf {
+/// The rows of the dense measured files: every 0.5 mm, ten per 5 mm bin.
+pub fn dense_rows() -> Vec<f64> {
+    (1..=(2.0 * STROKE) as usize)
+        .map(|k| 0.5 * k as f64)
+        .collect()
+}
+
+/// How the measured files are written.
+#[derive(Clone, Copy)]
+pub struct Data {
+    /// The MDZ strain columns too (else the force alone).
+    pub strains: bool,
+    /// Seeded noise (`None`: exact values).
+    pub seed: Option<u64>,
+    /// The fit starts at the truth (else at the paper's set).
+    pub start_at_truth: bool,
+    /// A row every 0.5 mm (else one row per scheduled displacement).
+    pub dense: bool,
+}
+
+/// Writes the cases, the measured files and a fit file freeing `free`.
+pub fn write_fit(dir: &Path, free: &[&str], data: Data) -> PathBuf {
+    let Data {
+        strains,
+        seed,
+        start_at_truth,
+        dense,
+    } = data;
     let material = truth();
     let params = if start_at_truth {
         std::fs::write(dir.join("truth.toml"), material.to_toml("the truth")).expect("write");
@@ -148,7 +172,12 @@ pub fn write_fit(
     let mut tests = String::new();
     for angle in ANGLES {
         std::fs::write(dir.join(format!("oat{angle}.toml")), coarse_case(angle)).expect("write");
-        let rows = synthetic(dir, angle, &material);
+        let rows = synthetic(
+            dir,
+            angle,
+            &material,
+            &if dense { dense_rows() } else { schedule() },
+        );
         let mut csv = String::from("# synthetic\ndisplacement [mm],force [N]");
         if strains {
             csv.push_str(",E22 [-],shear_angle [deg],E_perp [-]");
@@ -198,4 +227,19 @@ pub fn value_of(material: &MaterialSpec, key: &str) -> f64 {
         .find(|(k, _)| k == key)
         .map(|(_, v)| v)
         .expect("a key of the set")
+}
+
+/// The Mahalanobis distance `eᵀ Cov⁻¹ e` of the fit's error `e` (fitted
+/// minus `truth`) under the covariance it reports, `Cov_ij = σ_i σ_j ρ_ij`.
+pub fn mahalanobis(outcome: &ncform::fit::run::FitOutcome, truth: &MaterialSpec) -> f64 {
+    let id = outcome.identifiability.as_ref().expect("at the optimum");
+    let n = outcome.parameters.len();
+    let cov = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+        outcome.parameters[i].sigma * outcome.parameters[j].sigma * id.correlation[i][j]
+    });
+    let error = nalgebra::DVector::from_fn(n, |i, _| {
+        outcome.parameters[i].value - value_of(truth, &outcome.parameters[i].key)
+    });
+    let chol = cov.cholesky().expect("a positive definite covariance");
+    error.dot(&chol.solve(&error))
 }
