@@ -113,3 +113,75 @@ fn forces_alone_leave_parameters_undetermined_and_strains_fix_them() {
         assert_eq!(!poor.is_empty(), expect_poor, "strains {strains}: {poor:?}");
     }
 }
+
+/// The command writes every output of a converged fit, and a fit whose
+/// forward runs fail at the start writes what it has, says why and exits
+/// "incomplete" (3).
+#[test]
+fn the_command_writes_its_outputs_and_a_failed_start_says_why() {
+    use ncform::cli::fit::fit_command;
+    use ncform::report::ExitStatus;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = write_fit(
+        dir.path(),
+        &["w6.c_ini", "w8.c_ini"],
+        Data {
+            strains: true,
+            seed: Some(3),
+            start_at_truth: false,
+            dense: false,
+        },
+    );
+    let out = dir.path().join("out");
+    let status =
+        fit_command(&path, Some(out.clone()), true, &CancelToken::default()).expect("the fit runs");
+    assert_eq!(status, ExitStatus::Complete);
+    for file in [
+        "fitted.toml",
+        "fit.json",
+        "fit.csv",
+        "fit_curves.csv",
+        "fit_oat30.png",
+        "fit_oat45.png",
+        "fit_oat60.png",
+        "correlation.png",
+        "status.json",
+    ] {
+        assert!(out.join(file).is_file(), "{file} missing");
+    }
+    // fitted.toml is a parameter file a case uses unchanged.
+    let fitted =
+        ncform::material::MaterialSpec::load(&out.join("fitted.toml").display().to_string())
+            .expect("fitted.toml reads back");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).expect("fit.json"))
+            .expect("valid JSON");
+    let value = json["parameters"]["w6.c_ini"]["value"]
+        .as_f64()
+        .expect("a value");
+    assert_eq!(value_of(&fitted, "w6.c_ini"), value);
+
+    // Forward runs that cannot converge: one Newton iteration per step and
+    // no cut-back below the first increment.
+    for angle in fit_common::ANGLES {
+        let case = dir.path().join(format!("oat{angle}.toml"));
+        let text = std::fs::read_to_string(&case).expect("case");
+        std::fs::write(
+            &case,
+            format!("{text}\n[solver]\nmax_iterations = 1\nmin_increment = 1.0\n"),
+        )
+        .expect("write");
+    }
+    let out = dir.path().join("failed");
+    let status =
+        fit_command(&path, Some(out.clone()), true, &CancelToken::default()).expect("the fit runs");
+    assert_eq!(status, ExitStatus::Incomplete);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).expect("fit.json"))
+            .expect("valid JSON");
+    let warnings = json["warnings"].to_string();
+    assert!(warnings.contains("could not start"), "{warnings}");
+    assert!(!out.join("fitted.toml").exists());
+    let status_json = std::fs::read_to_string(out.join("status.json")).expect("status.json");
+    assert!(status_json.contains("StartFailed"), "{status_json}");
+}

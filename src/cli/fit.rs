@@ -99,13 +99,19 @@ pub fn fit_command(
         "parameter", "start", "fitted", "1 sigma", "sigma %"
     );
     for p in &outcome.parameters {
+        let (sigma, relative) = if p.sigma.is_finite() {
+            (
+                format!("{:.3e}", p.sigma),
+                format!("{:.1}", 100.0 * p.sigma / p.value.abs()),
+            )
+        } else {
+            ("-".to_string(), "-".to_string())
+        };
         println!(
-            "{:<24} {:>14.6e} {:>14.6e} {:>12.3e} {:>8.1}{}",
+            "{:<24} {:>14.6e} {:>14.6e} {sigma:>12} {relative:>8}{}",
             p.key,
             p.start,
             p.value,
-            p.sigma,
-            100.0 * p.sigma / p.value.abs(),
             if p.at_bound { "  at a bound" } else { "" }
         );
     }

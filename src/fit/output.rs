@@ -68,6 +68,10 @@ struct FitJson<'a> {
     evaluations: usize,
     seconds: f64,
     tests: BTreeMap<String, Vec<MisfitJson>>,
+    /// Per test, the largest estimated condition number of the converged
+    /// tangent over the scheduled points at the optimum.
+    largest_condition: BTreeMap<String, f64>,
+    condition_limit: f64,
     warnings: &'a [String],
     notes: [&'static str; 3],
 }
@@ -80,11 +84,6 @@ pub fn write_outputs(spec: &FitSpec, outcome: &FitOutcome, outputs: &mut Outputs
         let header = provenance(spec, outcome);
         let text = material.to_toml(&header);
         outputs.write(&root.join("fitted.toml"), |p| std::fs::write(p, &text));
-    } else {
-        outputs.record_missing(
-            "fitted.toml",
-            "no parameter set: the fit did not get past its start".into(),
-        );
     }
     outputs.write_json(&root.join("fit.json"), &fit_json(spec, outcome));
     outputs.write(&root.join("fit.csv"), |p| {
@@ -223,6 +222,20 @@ fn fit_json<'a>(spec: &'a FitSpec, outcome: &'a FitOutcome) -> FitJson<'a> {
         evaluations: outcome.evaluations,
         seconds: outcome.seconds,
         tests,
+        largest_condition: spec
+            .tests
+            .iter()
+            .zip(&outcome.final_runs)
+            .map(|(t, r)| {
+                let largest = r
+                    .points
+                    .iter()
+                    .filter_map(|p| p.condition)
+                    .fold(0.0, f64::max);
+                (t.name.clone(), largest)
+            })
+            .collect(),
+        condition_limit: super::run::CONDITION_LIMIT,
         warnings: &outcome.warnings,
         notes: [
             "sigma: 1 sigma of the parameter itself (not of its logarithm), Cov = s2 (J^T W J)^-1 with s2 = max(1, chi2/dof)",

@@ -218,7 +218,10 @@ pub fn fit(
             }
         })
         .collect();
-    outcome.material = material_at(spec, &parameters, &theta).ok();
+    // Nothing fitted, nothing to hand on: no parameter file then.
+    if !matches!(result.stop, LmStop::StartFailed(_)) {
+        outcome.material = material_at(spec, &parameters, &theta).ok();
+    }
     if let LmStop::StartFailed(why) = &result.stop {
         outcome.warnings.push(format!(
             "the fit could not start: the forward runs at the starting parameters failed: {why}"
