@@ -245,6 +245,7 @@ struct TestRaw {
     noise: Option<Spanned<NoiseRaw>>,
     offset: Option<Spanned<OffsetRaw>>,
     displacements: Option<Spanned<Vec<f64>>>,
+    quantities: Option<Spanned<Vec<Spanned<String>>>>,
 }
 
 #[derive(Deserialize)]
@@ -825,6 +826,49 @@ fn noise_given(
     Ok(out)
 }
 
+/// The quantities a test fits (`quantities`): each a name of
+/// [`Quantity::name`], each once, at least one; `None` when the key is
+/// not given (every measured quantity).
+fn quantities_given(
+    check: &TomlChecker,
+    raw: Option<&Spanned<Vec<Spanned<String>>>>,
+    key: &str,
+) -> Result<Option<Vec<Quantity>>, ConfigError> {
+    let Some(raw) = raw else {
+        return Ok(None);
+    };
+    let names = Quantity::ALL.map(|q| q.name()).join(", ");
+    if raw.get_ref().is_empty() {
+        return Err(check.invalid(
+            check.line_of(raw),
+            key,
+            "[]".into(),
+            &format!("at least one quantity to fit, of: {names}"),
+        ));
+    }
+    let mut out: Vec<Quantity> = Vec::with_capacity(raw.get_ref().len());
+    for name in raw.get_ref() {
+        let line = check.line_of(name);
+        let value = format!("\"{}\"", name.get_ref());
+        let Some(q) = Quantity::ALL
+            .into_iter()
+            .find(|q| q.name() == name.get_ref().as_str())
+        else {
+            return Err(check.invalid(
+                line,
+                key,
+                value,
+                &format!("one of the quantities {names} (exactly so spelt)"),
+            ));
+        };
+        if out.contains(&q) {
+            return Err(check.invalid(line, key, value, "each quantity once"));
+        }
+        out.push(q);
+    }
+    Ok(Some(out))
+}
+
 /// One `[[test]]`.
 fn test_spec(
     check: &TomlChecker,
@@ -926,11 +970,41 @@ fn test_spec(
     let noise_key = key("noise");
     let noise = noise_given(check, raw.noise.as_ref(), &noise_key)?;
     let noise_line = raw.noise.as_ref().map_or(case_line, |n| check.line_of(n));
-    // The quantities measured, their replicates' curves.
+    let quantities_key = key("quantities");
+    let listed = quantities_given(check, raw.quantities.as_ref(), &quantities_key)?;
+    // The quantities measured and fitted, their replicates' curves.
     let mut per_quantity: Vec<(Quantity, Vec<_>)> = Vec::new();
     for q in Quantity::ALL {
         let list: Vec<_> = curves.iter().filter_map(|c| c.curve(q)).collect();
-        if !list.is_empty() {
+        let wanted = listed.as_ref().is_none_or(|l| l.contains(&q));
+        if let (Some(l), Some(raw_list)) = (&listed, &raw.quantities)
+            && l.contains(&q)
+            && list.is_empty()
+        {
+            let line = raw_list
+                .get_ref()
+                .iter()
+                .find(|n| n.get_ref().as_str() == q.name())
+                .map_or(check.line_of(raw_list), |n| check.line_of(n));
+            return Err(check
+                .invalid(
+                    line,
+                    &quantities_key,
+                    format!("\"{}\"", q.name()),
+                    &format!(
+                        "quantities the measured files have: none of {} has the column {}{}",
+                        shown_names(&names),
+                        q.column(),
+                        if q == Quantity::Force {
+                            ""
+                        } else {
+                            " (or the DIC columns)"
+                        }
+                    ),
+                )
+                .into());
+        }
+        if wanted && !list.is_empty() {
             per_quantity.push((q, list));
         }
     }
@@ -959,14 +1033,19 @@ fn test_spec(
         }
     }
     for (q, (_, line)) in &noise {
-        if !per_quantity.iter().any(|(p, _)| p == q) {
-            warnings.push(format!(
-                "{}:{line}: {noise_key}.{}: no measured file of the test has {}; the noise is ignored",
-                check.source,
-                q.name(),
-                q.column()
-            ));
+        if per_quantity.iter().any(|(p, _)| p == q) {
+            continue;
         }
+        let reason = if listed.as_ref().is_some_and(|l| !l.contains(q)) {
+            format!("{} is not in {quantities_key}", q.name())
+        } else {
+            format!("no measured file of the test has {}", q.column())
+        };
+        warnings.push(format!(
+            "{}:{line}: {noise_key}.{}: {reason}; the noise is ignored",
+            check.source,
+            q.name(),
+        ));
     }
     // The range where every quantity of every replicate has values.
     let range_of = |list: &[super::measured::ReplicateCurve]| {
@@ -1061,12 +1140,13 @@ fn test_spec(
             }
             if last < force_last && last - hi < case.displacement {
                 warnings.push(format!(
-                    "{}:{measured_line}: {}: a strain column ends at {} mm, before the force ({} mm): the schedule ends at {} mm; remove the column to fit the force further",
+                    "{}:{measured_line}: {}: a strain column ends at {} mm, before the force ({} mm): the schedule ends at {} mm; leave the column out of {} to fit the force further",
                     check.source,
                     key("measured"),
                     readable_number(last),
                     readable_number(force_last),
-                    readable_number(d_end)
+                    readable_number(d_end),
+                    key("quantities")
                 ));
             }
             schedule
@@ -1254,8 +1334,9 @@ noise = { force = { relative = 0.02, absolute = 0.01 } }
         let model = 0.02 * mean + 0.01;
         let sigma = (model * model / 2.0 + s * s / 2.0).sqrt();
         assert!((force.sigma[0] - sigma).abs() < 1e-12);
-        // Curved force data (f″ = 2e-4, h = 2): bound 4/8·2e-4.
-        assert!((force.interpolation_error - 1e-4).abs() < 1e-12);
+        // Rows every 2 mm, bins [d − 2, d + 2): the rows d − 2 and d, whose
+        // line passes through the row at d: no curvature error, c = 1.
+        assert!(force.interpolation_error < 1e-15);
         // E22 without noise, from the scatter: s/√2 = 0.01/2.
         let e22 = test.quantity(Quantity::E22).unwrap();
         assert!((e22.sigma[0] - 0.005).abs() < 1e-12);
@@ -1314,7 +1395,8 @@ noise = { force = { relative = 0.02, absolute = 0.01 } }
             "{} vs {expected}",
             shear.values[9]
         );
-        assert!(shear.interpolation_error > 0.0 && shear.interpolation_error < 1e-3);
+        // Two rows per bin, one at the point: the fit passes through it.
+        assert!(shear.interpolation_error < 1e-12);
         let sixty = &spec.tests[2];
         assert_eq!(sixty.schedule.last(), Some(&50.0));
         let e22 = sixty.quantity(Quantity::E22).unwrap();
@@ -1357,9 +1439,13 @@ noise = { force = { relative = 0.02, absolute = 0.01 } }
             })
         );
         let force = test.quantity(Quantity::Force).unwrap();
-        // Measured at 10.5 mm: linear between the rows at 10 and 12 mm.
-        let quadratic = 1e-4 * (100.0 + 0.25 * (144.0 - 100.0));
+        // Measured at 10.5 mm: the bin [5.5, 15.5) holds the rows 6 … 14,
+        // whose linear fit of d² is 8 + 20 d − 100 (118 at 10.5, 110.25
+        // true); the bound ½·f″·|fit of (d − 10.5)² at 10.5| = ½·2e-4·7.75
+        // is that error exactly.
+        let quadratic = 1e-4 * 118.0;
         assert!((force.values[0] - (0.04 * 10.5 + quadratic + 0.05)).abs() < 1e-12);
+        assert!((force.interpolation_error - 1e-4 * 7.75).abs() < 1e-12);
         // The default schedule stops where the offset's upper bound still
         // finds measured data: 80 − 4 (default bounds ±0.05·80).
         let text = GOOD.to_string() + "offset = {}\n";
@@ -1532,6 +1618,79 @@ noise = { force = { relative = 0.02, absolute = 0.01 } }
         );
         assert_eq!(spec.tests[0].case.material, spec.start);
         assert_eq!(spec.tests[0].case.bias_angle_deg, 45.0);
+    }
+
+    #[test]
+    fn quantities_select_what_is_fitted() {
+        let dir = folder();
+        // One specimen with force and E22, a noise for the force alone.
+        let one = GOOD.replace("[\"a.csv\", \"b.csv\"]", "\"a.csv\"");
+        let forces = one.clone() + "quantities = [\"force\"]\n";
+        let spec = load(dir.path(), &forces).unwrap();
+        let test = &spec.tests[0];
+        assert_eq!(test.measured.len(), 1);
+        assert!(test.quantity(Quantity::Force).is_some());
+        assert!(test.quantity(Quantity::E22).is_none());
+        assert!(spec.warnings.is_empty(), "{:?}", spec.warnings);
+        // A noise for a quantity left out is ignored, with a warning.
+        let text = forces.replace("absolute = 0.01 }", "absolute = 0.01 }, E22 = 0.002");
+        let spec = load(dir.path(), &text).unwrap();
+        assert!(
+            spec.warnings.len() == 1
+                && spec.warnings[0].contains("test[0].noise.E22: E22 is not in test[0].quantities"),
+            "{:?}",
+            spec.warnings
+        );
+        // Listed, E22 needs its noise; the default is every quantity.
+        let m = refused(
+            dir.path(),
+            &(one.clone() + "quantities = [\"force\", \"E22\"]\n"),
+        );
+        assert!(m.contains("test[0].noise.E22 = (missing)"), "{m}");
+        let spec = load(dir.path(), GOOD).unwrap();
+        assert_eq!(spec.tests[0].measured.len(), 2);
+        // Unknown, unmeasured, repeated, none.
+        let m = refused(
+            dir.path(),
+            &(one.clone() + "quantities = [\"force\", \"shear\"]\n"),
+        );
+        assert!(
+            m.contains(":9: test[0].quantities = \"shear\": expected one of the quantities force, E22, shear_angle, E_perp"),
+            "{m}"
+        );
+        let m = refused(
+            dir.path(),
+            &(one.clone() + "quantities = [\"force\", \"shear_angle\"]\n"),
+        );
+        assert!(
+            m.contains(":9: test[0].quantities = \"shear_angle\": expected quantities the measured files have: none of")
+                && m.contains("shear_angle [deg]"),
+            "{m}"
+        );
+        let m = refused(
+            dir.path(),
+            &(one.clone() + "quantities = [\"force\", \"force\"]\n"),
+        );
+        assert!(m.contains("\"force\": expected each quantity once"), "{m}");
+        let m = refused(dir.path(), &(one.clone() + "quantities = []\n"));
+        assert!(m.contains("test[0].quantities = []"), "{m}");
+        // A short strain column does not shorten a forces-only schedule.
+        let mut short = String::from("displacement [mm],force [N],E22 [-]\n");
+        for k in 0..=40 {
+            let d = 2.0 * f64::from(k);
+            let e22 = if d <= 50.0 {
+                format!("{}", 0.001 * d)
+            } else {
+                String::new()
+            };
+            short.push_str(&format!("{d},{},{e22}\n", 0.02 * d));
+        }
+        write(dir.path(), "short.csv", &short);
+        let text = forces.replace("\"a.csv\"", "\"short.csv\"");
+        let spec = load(dir.path(), &text).unwrap();
+        assert_eq!(spec.tests[0].schedule.last(), Some(&80.0));
+        let text = text.replace("quantities = [\"force\"]\n", "");
+        assert!(refused(dir.path(), &text).contains("test[0].noise.E22 = (missing)"));
     }
 
     #[test]

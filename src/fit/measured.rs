@@ -166,7 +166,8 @@ impl MeasuredCurve {
 }
 
 /// One specimen's measured values of one quantity: the rows with a value,
-/// interpolated linearly in between.
+/// resampled by local linear fits over bins ([`ReplicateCurve::bin_fit`])
+/// or interpolated linearly in between.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReplicateCurve {
     /// The measured file.
@@ -231,11 +232,20 @@ impl ReplicateCurve {
             return 0.0;
         };
         let h = self.displacement[i + 1] - self.displacement[i];
-        let curvature = [i, i + 1]
+        h * h / 8.0 * self.curvature_at(d)
+    }
+
+    /// The estimate of `|f″|` at `d`: the larger second difference of the
+    /// rows at the two ends of the measured interval holding `d` (0
+    /// outside the range and for a curve of two rows).
+    fn curvature_at(&self, d: f64) -> f64 {
+        let Some(i) = self.interval(d) else {
+            return 0.0;
+        };
+        [i, i + 1]
             .iter()
             .filter_map(|&j| self.second_difference(j))
-            .fold(0.0_f64, |m, c| m.max(c.abs()));
-        h * h / 8.0 * curvature
+            .fold(0.0_f64, |m, c| m.max(c.abs()))
     }
 }
 
@@ -278,10 +288,143 @@ pub const SIGMA_FLOOR_RELATIVE: f64 = 1e-3;
 /// the quantity's unit.
 pub const SIGMA_FLOOR_ABSOLUTE: f64 = 1e-12;
 
+/// One replicate's local linear least-squares fit over a bin
+/// ([`ReplicateCurve::bin_fit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BinFit {
+    /// The fit's value at the bin's centre, in the quantity's unit.
+    pub value: f64,
+    /// The fit's slope, in the quantity's unit per mm.
+    pub slope: f64,
+    /// `c = √(1/n + (d − d̄)²/Sxx)`: the value's standard deviation in
+    /// units of one row's noise (1 for the interpolation fallback).
+    pub factor: f64,
+    /// The rows in the bin (`n`).
+    pub rows: usize,
+    /// The resampling error bound, in the quantity's unit.
+    pub error: f64,
+}
+
+impl ReplicateCurve {
+    /// The indices `[start, end)` of the rows in the bin `[lo, hi)` (the
+    /// last row included when `hi` reaches it): half-open, so that bins
+    /// that touch share no row.
+    fn bin_rows(&self, lo: f64, hi: f64) -> (usize, usize) {
+        let x = &self.displacement;
+        let start = x.partition_point(|&xi| xi < lo);
+        let end = match x.last() {
+            Some(&last) if hi >= last => x.len(),
+            _ => x.partition_point(|&xi| xi < hi),
+        };
+        (start, end.max(start))
+    }
+
+    /// The local linear least-squares fit of the rows with displacement in
+    /// the bin `[d − w, d + w)` (clipped to the measured range), evaluated
+    /// at `d` \[mm\]; `None` when `d` is outside the measured range.
+    ///
+    /// With `n ≥ 2` rows in the bin (distinct displacements, as the rows
+    /// are strictly increasing): value `a`, slope `b`, factor
+    /// `c = √(1/n + (d − d̄)²/Sxx)` and the curvature bound
+    /// `½·|f″|·|ĝ(d)|`, `ĝ` the same fit of `g(x) = (x − d)²` (the error of
+    /// the fit of a quadratic with second derivative `f″`), `|f″|` the
+    /// larger second difference of the rows at the ends of the measured
+    /// interval holding `d`.
+    ///
+    /// With fewer rows (a bin narrower than the rows' spacing) it falls
+    /// back to the linear interpolation between the rows: factor 1 (the
+    /// `σ` of one row), the slope a centred difference of the
+    /// interpolation over `± slope_window` (one-sided at the ends of the
+    /// range) and the error bound of [`ReplicateCurve::interpolation_bound`].
+    pub fn bin_fit(&self, d: f64, w: f64, slope_window: f64) -> Option<BinFit> {
+        let value = self.at(d)?;
+        let (first, last) = self.range();
+        let (start, end) = self.bin_rows((d - w).max(first), (d + w).min(last));
+        let n = end - start;
+        if n >= 2 {
+            let x = &self.displacement[start..end];
+            let f = &self.values[start..end];
+            let count = n as f64;
+            let u_mean = x.iter().map(|xi| xi - d).sum::<f64>() / count;
+            let f_mean = f.iter().sum::<f64>() / count;
+            let g_mean = x.iter().map(|xi| (xi - d).powi(2)).sum::<f64>() / count;
+            let (mut sxx, mut sxf, mut sxg) = (0.0, 0.0, 0.0);
+            for (xi, fi) in x.iter().zip(f) {
+                let du = xi - d - u_mean;
+                sxx += du * du;
+                sxf += du * (fi - f_mean);
+                sxg += du * ((xi - d).powi(2) - g_mean);
+            }
+            if sxx > 0.0 && sxx.is_finite() {
+                let slope = sxf / sxx;
+                let curvature = self.curvature_at(d);
+                let g_at_d = g_mean - sxg / sxx * u_mean;
+                return Some(BinFit {
+                    value: f_mean - slope * u_mean,
+                    slope,
+                    factor: (1.0 / count + u_mean * u_mean / sxx).sqrt(),
+                    rows: n,
+                    error: 0.5 * curvature * g_at_d.abs(),
+                });
+            }
+        }
+        let (lo, hi) = ((d - slope_window).max(first), (d + slope_window).min(last));
+        let slope = match (self.at(hi), self.at(lo)) {
+            (Some(f_hi), Some(f_lo)) if hi > lo => (f_hi - f_lo) / (hi - lo),
+            _ => 0.0,
+        };
+        Some(BinFit {
+            value,
+            slope,
+            factor: 1.0,
+            rows: n,
+            error: self.interpolation_bound(d),
+        })
+    }
+}
+
+/// The half-widths `w_k` of the schedule's bins \[mm\]: half the smaller
+/// gap to the neighbouring points (the gap from 0 to the first point for
+/// the first; the gap to the left neighbour for the last), so that the
+/// bins `[d_k − w_k, d_k + w_k)` do not overlap.
+pub fn bin_half_widths(schedule: &[f64]) -> Vec<f64> {
+    let k = schedule.len();
+    (0..k)
+        .map(|i| {
+            let left = if i == 0 {
+                schedule[0]
+            } else {
+                schedule[i] - schedule[i - 1]
+            };
+            let right = if i + 1 < k {
+                schedule[i + 1] - schedule[i]
+            } else {
+                left
+            };
+            0.5 * left.min(right).max(0.0)
+        })
+        .collect()
+}
+
+/// The replicates resampled at one displacement.
+struct Resampled {
+    /// The replicates' mean.
+    mean: f64,
+    /// The replicates' sample standard deviation (0 for one).
+    scatter: f64,
+    /// The replicates' mean of `c²`.
+    factor2: f64,
+    /// The replicates' mean slope.
+    slope: f64,
+    /// The largest resampling error bound of the replicates.
+    error: f64,
+}
+
 /// One quantity of one test, resampled to the fit's schedule: the mean of
-/// the replicates, its standard deviation and the interpolation-error
-/// bound, plus the replicates' curves for [`MeasuredQuantity::sample`] and
-/// plots. Rules: `docs/fit.md`, "Resampling".
+/// the replicates' local linear fits over non-overlapping bins, its
+/// standard deviation and the resampling error bound, plus the
+/// replicates' curves for [`MeasuredQuantity::sample`] and plots. Rules:
+/// `docs/fit.md`, "Resampling".
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeasuredQuantity {
     /// The quantity.
@@ -294,9 +437,8 @@ pub struct MeasuredQuantity {
     pub sigma: Vec<f64>,
     /// How many replicates have the quantity (`m`).
     pub replicates: usize,
-    /// The bound of the linear-interpolation error over the schedule
-    /// (`h²/8 · max|f″|`, the largest over the points and replicates;
-    /// [`ReplicateCurve::interpolation_bound`]), in the quantity's unit.
+    /// The resampling error bound over the schedule (the largest over the
+    /// points and replicates; [`BinFit::error`]), in the quantity's unit.
     /// An overestimate on noisy data, whose second differences hold the
     /// noise.
     pub interpolation_error: f64,
@@ -308,12 +450,18 @@ pub struct MeasuredQuantity {
     /// The smallest `σ` ([`SIGMA_FLOOR_RELATIVE`] of the largest `|mean|`
     /// over the schedule), in the quantity's unit.
     pub sigma_floor: f64,
-    /// Half-width of the centred difference of [`Sample::slope`] \[mm\]:
-    /// half the smallest gap of the schedule (the gap from 0 to the first
-    /// point included).
+    /// Half-width of the centred difference of [`Sample::slope`] for a
+    /// replicate with fewer than two rows in a bin \[mm\]: half the
+    /// smallest gap of the schedule (the gap from 0 to the first point
+    /// included).
     pub slope_window: f64,
     /// The offset `δ` at which `values` and `sigma` were taken \[mm\].
     pub offset: f64,
+    /// The schedule (simulated displacements) \[mm\].
+    pub schedule: Vec<f64>,
+    /// The bins' half-widths at the schedule points ([`bin_half_widths`])
+    /// \[mm\].
+    pub half_widths: Vec<f64>,
 }
 
 impl MeasuredQuantity {
@@ -348,26 +496,19 @@ impl MeasuredQuantity {
                 0.5
             },
             offset,
+            schedule: schedule.to_vec(),
+            half_widths: bin_half_widths(schedule),
         };
-        let mut scatter = Vec::with_capacity(schedule.len());
-        for &d in schedule {
-            let (mean, s) = quantity.mean_and_scatter(d + offset)?;
-            quantity.values.push(mean);
-            scatter.push(s);
-            for curve in &quantity.curves {
-                quantity.interpolation_error = quantity
-                    .interpolation_error
-                    .max(curve.interpolation_bound(d + offset));
-            }
+        let mut resampled = Vec::with_capacity(schedule.len());
+        for (&d, &w) in schedule.iter().zip(&quantity.half_widths) {
+            let r = quantity.resample(d + offset, w)?;
+            quantity.values.push(r.mean);
+            quantity.interpolation_error = quantity.interpolation_error.max(r.error);
+            resampled.push(r);
         }
         let largest = quantity.values.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         quantity.sigma_floor = (SIGMA_FLOOR_RELATIVE * largest).max(SIGMA_FLOOR_ABSOLUTE);
-        quantity.sigma = quantity
-            .values
-            .iter()
-            .zip(&scatter)
-            .map(|(&mean, &s)| quantity.sigma_of(mean, s))
-            .collect();
+        quantity.sigma = resampled.iter().map(|r| quantity.sigma_of(r)).collect();
         Some(quantity)
     }
 
@@ -381,64 +522,80 @@ impl MeasuredQuantity {
             })
     }
 
-    /// The replicates' mean and sample standard deviation (0 for one
-    /// replicate) at the measured displacement `d`, `None` outside a
-    /// replicate's range.
-    fn mean_and_scatter(&self, d: f64) -> Option<(f64, f64)> {
-        let values = self
+    /// The bin half-width for the simulated displacement `d_sim` \[mm\]:
+    /// that of the nearest schedule point.
+    fn half_width(&self, d_sim: f64) -> f64 {
+        self.schedule
+            .iter()
+            .zip(&self.half_widths)
+            .fold(
+                (f64::INFINITY, self.slope_window),
+                |(best, w), (&d, &wk)| {
+                    let distance = (d - d_sim).abs();
+                    if distance < best {
+                        (distance, wk)
+                    } else {
+                        (best, w)
+                    }
+                },
+            )
+            .1
+    }
+
+    /// The replicates' bin fits at the measured displacement `d` with
+    /// half-width `w`, combined; `None` outside a replicate's range.
+    fn resample(&self, d: f64, w: f64) -> Option<Resampled> {
+        let fits = self
             .curves
             .iter()
-            .map(|c| c.at(d))
-            .collect::<Option<Vec<f64>>>()?;
-        let m = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / m;
-        let s = if values.len() >= 2 {
-            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt()
+            .map(|c| c.bin_fit(d, w, self.slope_window))
+            .collect::<Option<Vec<BinFit>>>()?;
+        let m = fits.len() as f64;
+        let mean = fits.iter().map(|f| f.value).sum::<f64>() / m;
+        let scatter = if fits.len() >= 2 {
+            (fits.iter().map(|f| (f.value - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt()
         } else {
             0.0
         };
-        Some((mean, s))
+        Some(Resampled {
+            mean,
+            scatter,
+            factor2: fits.iter().map(|f| f.factor * f.factor).sum::<f64>() / m,
+            slope: fits.iter().map(|f| f.slope).sum::<f64>() / m,
+            error: fits.iter().fold(0.0_f64, |e, f| e.max(f.error)),
+        })
     }
 
-    /// `σ` of a mean with sample standard deviation `s`: with noise
-    /// `√((σ_model² + s²)/m)`, `σ_model` taken at the measured mean (the
-    /// relative part of the force noise weights the MEASURED force, not
-    /// the simulated one, so that `σ` does not depend on the parameters
-    /// and the cost stays a plain weighted least-squares sum); without
-    /// `s/√m`; never below [`MeasuredQuantity::sigma_floor`].
-    fn sigma_of(&self, mean: f64, s: f64) -> f64 {
+    /// `σ` of a resampled mean: with noise `√((σ_model²·⟨c²⟩ + s²)/m)`,
+    /// `σ_model` taken at the measured mean (the relative part of the
+    /// force noise weights the MEASURED force, not the simulated one, so
+    /// that `σ` does not depend on the parameters and the cost stays a
+    /// plain weighted least-squares sum) and `⟨c²⟩` the replicates' mean
+    /// of the bins' `c²`; without `s/√m`; never below
+    /// [`MeasuredQuantity::sigma_floor`].
+    fn sigma_of(&self, r: &Resampled) -> f64 {
         let m = self.replicates as f64;
+        let s = r.scatter;
         let sigma = match self.noise {
-            Some(noise) => ((noise.sigma(mean).powi(2) + s * s) / m).sqrt(),
+            Some(noise) => ((noise.sigma(r.mean).powi(2) * r.factor2 + s * s) / m).sqrt(),
             None => s / m.sqrt(),
         };
         sigma.max(self.sigma_floor)
     }
 
     /// The measured value for the simulated displacement `d_sim` \[mm\]
-    /// with the offset `offset` \[mm\]: the replicates at `d_sim + offset`
-    /// (their mean, its `σ` as for the schedule, and the mean's slope from
-    /// a centred difference over `± slope_window`, one-sided at the ends
-    /// of the common range); `None` outside it.
+    /// with the offset `offset` \[mm\]: the replicates' bin fits at
+    /// `d_sim + offset` with the bin half-width of the nearest schedule
+    /// point (their mean, its `σ` as for the schedule, and the mean of
+    /// their slopes); `None` outside the common range. At a schedule point
+    /// with the offset of [`MeasuredQuantity::offset`] it gives
+    /// [`MeasuredQuantity::values`] and [`MeasuredQuantity::sigma`].
     pub fn sample(&self, d_sim: f64, offset: f64) -> Option<Sample> {
-        let d = d_sim + offset;
-        let (mean, s) = self.mean_and_scatter(d)?;
-        let (first, last) = self.range();
-        let (lo, hi) = (
-            (d - self.slope_window).max(first),
-            (d + self.slope_window).min(last),
-        );
-        let slope = if hi > lo {
-            let (f_hi, _) = self.mean_and_scatter(hi)?;
-            let (f_lo, _) = self.mean_and_scatter(lo)?;
-            (f_hi - f_lo) / (hi - lo)
-        } else {
-            0.0
-        };
+        let r = self.resample(d_sim + offset, self.half_width(d_sim))?;
         Some(Sample {
-            value: mean,
-            sigma: self.sigma_of(mean, s),
-            slope,
+            value: r.mean,
+            sigma: self.sigma_of(&r),
+            slope: r.slope,
         })
     }
 }
@@ -1046,8 +1203,148 @@ mod tests {
         }
     }
 
+    /// A seeded standard normal sample (Box–Muller).
+    fn normal(rng: &mut rand::rngs::StdRng) -> f64 {
+        use rand::RngExt;
+        let u: f64 = 1.0 - rng.random::<f64>();
+        let v: f64 = rng.random();
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
+
+    /// 400 rows over (0, 80] mm, jittered by ±0.05 mm about a 0.2 mm
+    /// spacing (the last at 80 mm): `f = a + 0.3 d` plus normal noise of
+    /// `sigma`.
+    fn noisy_linear(seed: u64, a: f64, sigma: f64) -> ReplicateCurve {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let x: Vec<f64> = (0..400)
+            .map(|i| {
+                let jitter = 0.1 * rng.random::<f64>() - 0.05;
+                0.2 * f64::from(i + 1) + if i < 399 { jitter } else { 0.0 }
+            })
+            .collect();
+        let f = x
+            .iter()
+            .map(|d| a + 0.3 * d + sigma * normal(&mut rng))
+            .collect();
+        curve(x, f)
+    }
+
+    /// The schedule 4, 8, …, `last` \[mm\].
+    fn every_four(last: u32) -> Vec<f64> {
+        (1..=last / 4).map(|k| 4.0 * f64::from(k)).collect()
+    }
+
     #[test]
-    fn interpolation_bound_is_zero_for_linear_and_positive_for_curved_data() {
+    fn bins_tile_without_overlap() {
+        assert_eq!(
+            bin_half_widths(&[1.0, 3.0, 4.0, 8.0, 9.5]),
+            vec![0.5, 0.5, 0.5, 0.75, 0.75]
+        );
+        assert_eq!(bin_half_widths(&[0.5]), vec![0.25]);
+        for schedule in [
+            vec![1.0, 3.0, 4.0, 8.0, 9.5],
+            (1..=12).map(|k| 5.0 * f64::from(k)).collect(),
+            vec![0.5],
+            vec![2.0, 2.1, 7.0],
+        ] {
+            let w = bin_half_widths(&schedule);
+            assert!(schedule[0] - w[0] >= 0.0);
+            for k in 0..schedule.len() {
+                assert!(w[k] > 0.0);
+                if k + 1 < schedule.len() {
+                    assert!(schedule[k] + w[k] <= schedule[k + 1] - w[k + 1] + 1e-12);
+                }
+            }
+        }
+        // Rows on the bins' common edges (every 0.25 mm, edges at 1.5,
+        // 2.5, …) belong to one bin each.
+        let x: Vec<f64> = (0..=40).map(|i| 0.25 * f64::from(i)).collect();
+        let c = curve(x.clone(), x.clone());
+        let schedule: Vec<f64> = (1..=10).map(f64::from).collect();
+        let w = bin_half_widths(&schedule);
+        let bins: Vec<(usize, usize)> = schedule
+            .iter()
+            .zip(&w)
+            .map(|(d, w)| c.bin_rows(d - w, (d + w).min(10.0)))
+            .collect();
+        for pair in bins.windows(2) {
+            assert_eq!(pair[0].1, pair[1].0, "{bins:?}");
+        }
+        assert_eq!(bins[0], (2, 6));
+        assert_eq!(bins[9], (38, 41));
+    }
+
+    #[test]
+    fn exactly_linear_data_give_exact_values_and_sigma_row_times_c() {
+        // Rows every 0.1 mm, half a spacing off the schedule: centred
+        // bins of 40 rows each.
+        let x: Vec<f64> = (0..800).map(|i| 0.05 + 0.1 * f64::from(i)).collect();
+        let c = curve(x.clone(), x.iter().map(|d| 3.0 + 0.5 * d).collect());
+        let noise = Noise {
+            relative: 0.01,
+            absolute: 0.5,
+        };
+        let schedule = every_four(76);
+        let q = MeasuredQuantity::new(
+            Quantity::Force,
+            vec![c.clone()],
+            &schedule,
+            0.0,
+            Some(noise),
+        )
+        .unwrap();
+        assert!(q.interpolation_error < 1e-9);
+        for (k, &d) in schedule.iter().enumerate() {
+            let fit = c.bin_fit(d, q.half_widths[k], q.slope_window).unwrap();
+            assert_eq!(fit.rows, 40);
+            assert!((fit.factor - 1.0 / 40.0_f64.sqrt()).abs() < 1e-12);
+            assert!((fit.slope - 0.5).abs() < 1e-12);
+            let truth = 3.0 + 0.5 * d;
+            assert!((q.values[k] - truth).abs() < 1e-12);
+            let expected = noise.sigma(q.values[k]) / 40.0_f64.sqrt();
+            assert!((q.sigma[k] - expected).abs() < 1e-12 * expected);
+        }
+    }
+
+    #[test]
+    fn noisy_linear_data_have_standardised_residuals_of_unit_variance() {
+        // 10 seeds × 20 points: Σ z² over N = 200 independent points is
+        // χ²_N; its 0.1 % … 99.9 % range by Wilson–Hilferty
+        // (N (1 − 2/(9N) ± z √(2/(9N)))³, z = 3.0902), ≈ 0.72 … 1.34 of N.
+        // (The σ of one row instead would give about N/20.)
+        let noise = Noise {
+            relative: 0.0,
+            absolute: 0.3,
+        };
+        let schedule = every_four(80);
+        let mut sum = 0.0;
+        let mut count = 0;
+        for seed in 0..10 {
+            let c = noisy_linear(seed, 2.0, noise.absolute);
+            let q = MeasuredQuantity::new(Quantity::Force, vec![c], &schedule, 0.0, Some(noise))
+                .unwrap();
+            for (k, &d) in schedule.iter().enumerate() {
+                let z = (q.values[k] - (2.0 + 0.3 * d)) / q.sigma[k];
+                sum += z * z;
+                count += 1;
+            }
+        }
+        let n = f64::from(count);
+        let (a, b) = (1.0 - 2.0 / (9.0 * n), 3.0902 * (2.0 / (9.0 * n)).sqrt());
+        let (lo, hi) = ((a - b).powi(3), (a + b).powi(3));
+        let variance = sum / n;
+        eprintln!(
+            "variance of z over {count} points: {variance:.3} (0.1 %…99.9 %: {lo:.3}…{hi:.3})"
+        );
+        assert!(
+            variance > lo && variance < hi,
+            "{variance} not in [{lo}, {hi}]"
+        );
+    }
+
+    #[test]
+    fn the_curvature_bound_holds_on_quadratic_data() {
         let x: Vec<f64> = (0..=10).map(f64::from).collect();
         let linear = curve(x.clone(), x.iter().map(|d| 2.0 * d + 1.0).collect());
         let q = MeasuredQuantity::new(
@@ -1063,14 +1360,74 @@ mod tests {
         .unwrap();
         assert_eq!(q.interpolation_error, 0.0);
         assert_eq!(q.values, vec![6.0, 11.0, 16.0]);
-        // f = d²: f″ = 2, h = 1: bound 1/8·2 = 0.25, the true error at a
-        // midpoint (0.25) reaches it.
+        // f = d², f″ = 2: at 2.5 the bin holds the rows 2 and 3 (the
+        // chord: 6.5, error ½·2·0.25); at 5 the rows 4, 5, 6 (25 + 2/3,
+        // error ½·2·⟨(x − 5)²⟩ = 2/3). The bound is reached exactly.
         let square = curve(x.clone(), x.iter().map(|d| d * d).collect());
         let q =
             MeasuredQuantity::new(Quantity::Force, vec![square], &[2.5, 5.0], 0.0, None).unwrap();
-        assert!((q.interpolation_error - 0.25).abs() < 1e-12);
         assert!((q.values[0] - 6.5).abs() < 1e-12);
-        assert!((q.values[0] - 2.5 * 2.5 - q.interpolation_error).abs() < 1e-12);
+        assert!((q.values[1] - (25.0 + 2.0 / 3.0)).abs() < 1e-12);
+        assert!((q.interpolation_error - 2.0 / 3.0).abs() < 1e-12);
+        // Unevenly spread rows, asymmetric and clipped bins.
+        let x: Vec<f64> = (0..=60)
+            .map(|i| {
+                let i = f64::from(i);
+                (i + 0.4 * (1.7 * i).sin()) / 3.0
+            })
+            .collect();
+        let f = |d: f64| 0.5 * d * d - d + 3.0;
+        let c = curve(x.clone(), x.iter().map(|&d| f(d)).collect());
+        let schedule = [0.7, 2.0, 2.6, 5.0, 9.0, 13.0, 17.0, 20.0];
+        let w = bin_half_widths(&schedule);
+        let mut reached = false;
+        for (&d, &w) in schedule.iter().zip(&w) {
+            let fit = c.bin_fit(d, w, 0.5).unwrap();
+            let error = (fit.value - f(d)).abs();
+            assert!(
+                error <= fit.error * (1.0 + 1e-9) + 1e-12,
+                "{d}: {error} > {}",
+                fit.error
+            );
+            reached |= fit.rows >= 3 && (error - fit.error).abs() < 1e-9;
+        }
+        assert!(reached);
+    }
+
+    #[test]
+    fn replicates_average_c_squared_and_add_their_scatter() {
+        // A: rows every 0.1 mm (40 per bin, c² = 1/40); B: rows every 4 mm
+        // (one per bin: the interpolation, c = 1), 0.3 above A.
+        let xa: Vec<f64> = (0..800).map(|i| 0.05 + 0.1 * f64::from(i)).collect();
+        let a = curve(xa.clone(), xa.iter().map(|d| 1.0 + 0.2 * d).collect());
+        let xb: Vec<f64> = (0..=20).map(|k| 4.0 * f64::from(k)).collect();
+        let b = curve(xb.clone(), xb.iter().map(|d| 1.3 + 0.2 * d).collect());
+        let schedule = every_four(76);
+        let noise = Noise {
+            relative: 0.0,
+            absolute: 0.05,
+        };
+        let q = MeasuredQuantity::new(
+            Quantity::Force,
+            vec![a.clone(), b.clone()],
+            &schedule,
+            0.0,
+            Some(noise),
+        )
+        .unwrap();
+        assert_eq!(q.replicates, 2);
+        let s2 = 0.3_f64 * 0.3 / 2.0;
+        let c2 = (1.0 / 40.0 + 1.0) / 2.0;
+        let expected = ((0.05_f64 * 0.05 * c2 + s2) / 2.0).sqrt();
+        for (k, &d) in schedule.iter().enumerate() {
+            assert!((q.values[k] - (1.15 + 0.2 * d)).abs() < 1e-12);
+            assert!((q.sigma[k] - expected).abs() < 1e-12, "{}", q.sigma[k]);
+        }
+        // Without noise: the scatter alone, s/√m.
+        let q = MeasuredQuantity::new(Quantity::E22, vec![a, b], &schedule, 0.0, None).unwrap();
+        for s in &q.sigma {
+            assert!((s - 0.15).abs() < 1e-12);
+        }
     }
 
     #[test]
@@ -1089,18 +1446,43 @@ mod tests {
             }),
         )
         .unwrap();
+        // At 2.5 the bin [1.5, 3.5) holds the rows 2 and 3: c² = 1/2.
         let s = q.sample(2.0, 0.5).unwrap();
         assert!((s.value - 5.1).abs() < 1e-12);
         assert!((s.value - q.values[0]).abs() < 1e-12);
         let scatter = (2.0_f64 * 0.1 * 0.1 / 1.0).sqrt();
-        let expected = ((0.1_f64 * 5.1).powi(2) / 2.0 + scatter * scatter / 2.0).sqrt();
+        let expected = ((0.1_f64 * 5.1).powi(2) * 0.5 / 2.0 + scatter * scatter / 2.0).sqrt();
         assert!((s.sigma - expected).abs() < 1e-12);
         assert!((q.sigma[0] - expected).abs() < 1e-12);
         assert!((s.slope - 2.0).abs() < 1e-12);
         assert_eq!(q.slope_window, 1.0);
-        // At the end of the range the slope is one-sided; beyond, None.
+        // At the end of the range the bin is clipped; beyond, None.
         assert!((q.sample(9.5, 0.5).unwrap().slope - 2.0).abs() < 1e-12);
         assert!(q.sample(9.6, 0.5).is_none());
         assert!(q.sample(-1.0, 0.5).is_none());
+    }
+
+    #[test]
+    fn sample_at_the_schedule_equals_the_precomputed_values() {
+        let noise = Noise {
+            relative: 0.02,
+            absolute: 0.1,
+        };
+        let schedule = every_four(72);
+        let offset = 0.7;
+        let curves = vec![noisy_linear(1, 2.0, 0.3), noisy_linear(2, 2.4, 0.3)];
+        let q =
+            MeasuredQuantity::new(Quantity::Force, curves, &schedule, offset, Some(noise)).unwrap();
+        for (k, &d) in schedule.iter().enumerate() {
+            let s = q.sample(d, offset).unwrap();
+            assert_eq!((s.value, s.sigma), (q.values[k], q.sigma[k]));
+            // The slope is the derivative in the offset (the bins' rows
+            // stay the same for a small change).
+            let h = 1e-6;
+            let up = q.sample(d, offset + h).unwrap().value;
+            let down = q.sample(d, offset - h).unwrap().value;
+            assert!(((up - down) / (2.0 * h) - s.slope).abs() < 1e-6);
+            assert!((s.slope - 0.3).abs() < 0.1, "{}", s.slope);
+        }
     }
 }

@@ -63,7 +63,7 @@ pub struct Misfit {
     pub weighted_rms: f64,
     /// RMS of `sim − meas` in the quantity's unit.
     pub rms: f64,
-    /// The measured data's linear-interpolation error bound, same unit.
+    /// The measured data's resampling error bound, same unit.
     pub interpolation_error: f64,
 }
 
