@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector2;
 
-use super::input::FitInputError;
+use super::error::FitInputError;
 use crate::config::readable_number;
 use crate::material::{FibreFrame, Invariants, MaterialError, Sym2};
 

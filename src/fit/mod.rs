@@ -12,6 +12,7 @@
 //! [`run`] is the library entry point ([`run::fit`]), [`output`] writes
 //! its files and pictures.
 
+pub mod error;
 pub mod evaluate;
 pub mod identify;
 pub mod input;

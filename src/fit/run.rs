@@ -409,7 +409,7 @@ fn warnings(
 fn log_name(p: &ScaledParameter) -> String {
     match p.scaling {
         Scaling::Log => format!("ln {}", p.key),
-        Scaling::Linear => format!("{}/{}", p.key, p.scale),
+        Scaling::Linear => format!("{}/{:.3}", p.key, p.scale),
     }
 }
 
@@ -431,18 +431,16 @@ fn what_would_help(
         .collect();
     let chi2 = evaluation.residual.norm_squared();
     let n = parameters.len();
-    let mut best: Option<(f64, String)> = None;
-    for (t, (test, run)) in spec.tests.iter().zip(&evaluation.runs).enumerate() {
-        for quantity in Quantity::ALL {
-            if test.quantity(quantity).is_some() {
-                continue;
-            }
+    // The worst relative σ of the poorly determined parameters with the
+    // rows of `added` (test, quantity) appended at the assumed noise.
+    let worst_with = |added: &[(usize, Quantity)]| -> f64 {
+        let mut rows: Vec<Vec<f64>> = (0..evaluation.jacobian.nrows())
+            .map(|i| evaluation.jacobian.row(i).iter().copied().collect())
+            .collect();
+        for &(t, quantity) in added {
             let q = quantity_index(quantity);
             let noise = assumed_noise(quantity);
-            let mut rows: Vec<Vec<f64>> = (0..evaluation.jacobian.nrows())
-                .map(|i| evaluation.jacobian.row(i).iter().copied().collect())
-                .collect();
-            for point in &run.points {
+            for point in &evaluation.runs[t].points {
                 let mut row = vec![0.0; n];
                 let mut law_index = 0;
                 for (c, p) in parameters.iter().enumerate() {
@@ -453,22 +451,54 @@ fn what_would_help(
                 }
                 rows.push(row);
             }
-            let j = DMatrix::from_fn(rows.len(), n, |i, k| rows[i][k]);
-            let id = identifiability(&j, chi2, &dp);
-            let worst = poor
-                .iter()
-                .map(|&i| id.sigma[i] / parameters[i].value(theta[i]).abs())
-                .fold(0.0, f64::max);
-            let _ = t;
-            let text = format!(
-                "; adding the {} curve of test {} (noise {noise}) would bring the worst of these to {:.0} %",
-                quantity.name(),
-                test.name,
-                100.0 * worst
-            );
-            if best.as_ref().is_none_or(|(w, _)| worst < *w) {
-                best = Some((worst, text));
-            }
+        }
+        let j = DMatrix::from_fn(rows.len(), n, |i, k| rows[i][k]);
+        let id = identifiability(&j, chi2, &dp);
+        poor.iter()
+            .map(|&i| id.sigma[i] / parameters[i].value(theta[i]).abs())
+            .fold(0.0, f64::max)
+    };
+    let missing: Vec<(usize, Quantity)> = spec
+        .tests
+        .iter()
+        .enumerate()
+        .flat_map(|(t, test)| {
+            Quantity::ALL
+                .into_iter()
+                .filter(move |q| *q != Quantity::Force && test.quantity(*q).is_none())
+                .map(move |q| (t, q))
+        })
+        .collect();
+    let mut best: Option<(f64, String)> = None;
+    for &(t, quantity) in &missing {
+        let worst = worst_with(&[(t, quantity)]);
+        if best.as_ref().is_none_or(|(w, _)| worst < *w) {
+            best = Some((
+                worst,
+                format!(
+                    "; adding the {} curve of test {} (noise {} per point) would bring the worst of these to {:.0} %",
+                    quantity.name(),
+                    spec.tests[t].name,
+                    assumed_noise(quantity),
+                    100.0 * worst
+                ),
+            ));
+        }
+    }
+    if missing.len() > 1
+        && let Some((single, text)) = &best
+        && *single > RELATIVE_SIGMA_LIMIT
+    {
+        let all = worst_with(&missing);
+        if all < *single {
+            best = Some((
+                all,
+                format!(
+                    "{text}; adding every missing MDZ strain curve ({} curves) would bring it to {:.0} %",
+                    missing.len(),
+                    100.0 * all
+                ),
+            ));
         }
     }
     match best {
