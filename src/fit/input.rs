@@ -859,7 +859,7 @@ fn test_spec(
     warnings.extend(case.warnings.iter().map(|w| w.to_string()));
     if case.material.material != start.material {
         warnings.push(format!(
-            "{}:{case_line}: {} = {case_value}: the case's own parameters ({}) differ from the fit's params ({}); the fit runs the case with its own parameters",
+            "{}:{case_line}: {} = {case_value}: the case's own parameters ({}) differ from the fit's params ({}); the fit runs the case with the fit's parameters in place of its own",
             check.source,
             key("case"),
             case.material.source,
