@@ -248,6 +248,15 @@ fn assemble_again(
         .or_else(|| assemble(spec, parameters, theta, fallback.runs).ok())
 }
 
+/// `dp/dθ` of every parameter at `theta`.
+fn value_derivatives(parameters: &[ScaledParameter], theta: &[f64]) -> Vec<f64> {
+    parameters
+        .iter()
+        .zip(theta)
+        .map(|(p, &t)| p.derivative(t))
+        .collect()
+}
+
 /// Whether `θ` lies on a bound of `p` (to a millionth of its scale).
 fn at_bound(p: &ScaledParameter, theta: f64) -> bool {
     let (lo, hi) = (p.theta(p.lower), p.theta(p.upper));
@@ -263,11 +272,7 @@ fn report(
     evaluation: &Evaluation,
     outcome: &mut FitOutcome,
 ) {
-    let dp: Vec<f64> = parameters
-        .iter()
-        .zip(theta)
-        .map(|(p, &t)| p.derivative(t))
-        .collect();
+    let dp = value_derivatives(parameters, theta);
     let chi2 = evaluation.residual.norm_squared();
     let id = identifiability(&evaluation.jacobian, chi2, &dp);
     for (p, s) in outcome.parameters.iter_mut().zip(&id.sigma) {
@@ -424,11 +429,7 @@ fn what_would_help(
     evaluation: &Evaluation,
     poor: &[usize],
 ) -> String {
-    let dp: Vec<f64> = parameters
-        .iter()
-        .zip(theta)
-        .map(|(p, &t)| p.derivative(t))
-        .collect();
+    let dp = value_derivatives(parameters, theta);
     let chi2 = evaluation.residual.norm_squared();
     let n = parameters.len();
     // The worst relative σ of the poorly determined parameters with the
@@ -476,7 +477,7 @@ fn what_would_help(
             best = Some((
                 worst,
                 format!(
-                    "; adding the {} curve of test {} (noise {} per point) would bring the worst of these to {:.0} %",
+                    "; adding the {} curve of test {} (noise {} per point; predicted here) would bring the worst of these to {:.0} %",
                     quantity.name(),
                     spec.tests[t].name,
                     assumed_noise(quantity),
