@@ -467,14 +467,15 @@ impl MaterialSpec {
         let table = term.key();
         match parameter {
             TermParameter::CLock | TermParameter::ILock => format!(
-                "a parameter of this set: [{table}] has no lock; to add one, give c_lock and \
-                 i_lock together in the [{table}] table of a parameter file (MaterialSpec::to_toml \
-                 writes the set as one) and load that file"
+                "a parameter of this set: [{table}] has no lock; to add one, write c_lock and \
+                 i_lock together into the [{table}] table of a parameter file (a copy of the set: \
+                 `ncform material params NAME` prints a named one) and use that file"
             ),
             _ => format!(
-                "a parameter of this set: [{table}] has no transition; to add one, give s_ini, \
-                 c_mid and delta_s_mid together in the [{table}] table of a parameter file \
-                 (MaterialSpec::to_toml writes the set as one) and load that file"
+                "a parameter of this set: [{table}] has no transition; to add one, write s_ini, \
+                 c_mid and delta_s_mid together into the [{table}] table of a parameter file (a \
+                 copy of the set: `ncform material params NAME` prints a named one) and use that \
+                 file"
             ),
         }
     }
