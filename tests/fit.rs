@@ -185,3 +185,47 @@ fn the_command_writes_its_outputs_and_a_failed_start_says_why() {
     let status_json = std::fs::read_to_string(out.join("status.json")).expect("status.json");
     assert!(status_json.contains("StartFailed"), "{status_json}");
 }
+
+/// A free displacement offset (slack at the start of a test) is found:
+/// measured rows written 1 mm late (`d_meas = d_sim + 1`), the fit frees
+/// the offset and W6's initial modulus and recovers δ within 3 of its
+/// reported σ (a sign error would put it 2 mm, some twenty σ, away).
+#[test]
+fn a_free_offset_is_recovered() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let angle = 45.0;
+    std::fs::write(
+        dir.path().join("oat45.toml"),
+        fit_common::coarse_case(angle),
+    )
+    .expect("write");
+    let start = ncform::material::MaterialSpec::default_set();
+    let rows = fit_common::synthetic(dir.path(), angle, &start, &fit_common::dense_rows());
+    let slack = 1.0;
+    let mut csv = String::from("# synthetic, 1 mm of slack\ndisplacement [mm],force [N]\n");
+    for r in rows.iter().filter(|r| r[0] + slack <= fit_common::STROKE) {
+        csv.push_str(&format!("{},{}\n", r[0] + slack, r[1]));
+    }
+    std::fs::write(dir.path().join("oat45.csv"), csv).expect("write");
+    let schedule: Vec<f64> = (1..=11).map(|k| 5.0 * k as f64).collect();
+    let text = format!(
+        "title = \"offset\"\nparams = \"schaefer2024\"\nfree = [\"w6.c_ini\"]\n[fit]\nmax_iterations = 40\n\n[[test]]\ncase = \"oat45.toml\"\nmeasured = \"oat45.csv\"\nnoise = {{ force = {{ relative = 0.02, absolute = 0.01 }} }}\noffset = {{ free = true, start = 0.0, bounds = [-2.0, 2.0] }}\ndisplacements = {schedule:?}\n"
+    );
+    let path = dir.path().join("fit.toml");
+    std::fs::write(&path, text).expect("write");
+    let spec = FitSpec::load(&path).expect("the fit file");
+    let outcome = fit(&spec, |_, _| {}, &CancelToken::default()).expect("the fit");
+    assert!(outcome.converged(), "{:?}", outcome.stop);
+    let offset = outcome
+        .parameters
+        .iter()
+        .find(|p| p.key.starts_with("offset."))
+        .expect("the offset is a fitted parameter");
+    eprintln!("offset {} ± {}", offset.value, offset.sigma);
+    assert!(
+        (offset.value - slack).abs() <= 3.0 * offset.sigma,
+        "offset {} ± {} (slack {slack})",
+        offset.value,
+        offset.sigma
+    );
+}
