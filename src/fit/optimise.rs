@@ -209,7 +209,7 @@ pub fn minimise(
         };
         let Some(step_free) = solved else {
             damping *= 10.0;
-            history.push(LmIteration {
+            let it = LmIteration {
                 iteration,
                 cost: current_cost,
                 damping,
@@ -217,8 +217,9 @@ pub fn minimise(
                 accepted: false,
                 theta: theta.clone(),
                 failure: Some("the damped normal equations are singular".into()),
-            });
-            on_iteration(history.last().expect("just pushed"));
+            };
+            on_iteration(&it);
+            history.push(it);
             continue;
         };
         let mut trial = theta.clone();
@@ -260,7 +261,7 @@ pub fn minimise(
                     } else {
                         damping
                     };
-                    history.push(LmIteration {
+                    let it = LmIteration {
                         iteration,
                         cost: current_cost,
                         damping,
@@ -268,8 +269,9 @@ pub fn minimise(
                         accepted: true,
                         theta: theta.clone(),
                         failure: None,
-                    });
-                    on_iteration(history.last().expect("just pushed"));
+                    };
+                    on_iteration(&it);
+                    history.push(it);
                     let dof = current.residual.len().saturating_sub(n) as f64;
                     let noisy = 2.0 * current_cost >= 0.5 * dof && dof > 0.0;
                     let chi2_drop = 2.0 * (history[history.len() - 2].cost - current_cost);
@@ -285,7 +287,7 @@ pub fn minimise(
             Err(why) => (false, Some(why)),
         };
         damping *= 10.0;
-        history.push(LmIteration {
+        let it = LmIteration {
             iteration,
             cost: current_cost,
             damping,
@@ -293,8 +295,9 @@ pub fn minimise(
             accepted,
             theta: theta.clone(),
             failure,
-        });
-        on_iteration(history.last().expect("just pushed"));
+        };
+        on_iteration(&it);
+        history.push(it);
         if damping > 1e12 {
             stop = LmStop::NoDecrease;
             break;

@@ -7,8 +7,7 @@ use std::time::Instant;
 use nalgebra::DMatrix;
 
 use super::evaluate::{
-    Evaluation, ScaledParameter, TestRun, assemble, evaluate, material_at, quantity_index,
-    scaled_parameters,
+    Evaluation, ScaledParameter, TestRun, evaluate, material_at, quantity_index, scaled_parameters,
 };
 use super::identify::{Identifiability, RELATIVE_SIGMA_LIMIT, identifiability};
 use super::input::{FitSpec, Scaling};
@@ -200,7 +199,7 @@ pub fn fit(
     // The evaluation at the optimum (the accepted point is the best one).
     let evaluation = match best {
         Some((t, e)) if t == theta => Some(e),
-        Some((_, e)) => assemble_again(spec, &parameters, &theta, e),
+        Some(_) => evaluate(spec, &parameters, &theta).ok(),
         None => None,
     };
     outcome.parameters = parameters
@@ -233,19 +232,6 @@ pub fn fit(
     }
     outcome.seconds = clock.elapsed().as_secs_f64();
     Ok(outcome)
-}
-
-/// The evaluation at `theta` when the kept one is of another point (never
-/// expected: the optimiser's point is its best), evaluated again.
-fn assemble_again(
-    spec: &FitSpec,
-    parameters: &[ScaledParameter],
-    theta: &[f64],
-    fallback: Evaluation,
-) -> Option<Evaluation> {
-    evaluate(spec, parameters, theta)
-        .ok()
-        .or_else(|| assemble(spec, parameters, theta, fallback.runs).ok())
 }
 
 /// `dp/dθ` of every parameter at `theta`.

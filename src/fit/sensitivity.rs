@@ -235,37 +235,41 @@ fn force_parameter_derivatives(
     u: &[f64],
 ) -> Result<Vec<Vec<f64>>, MaterialError> {
     let n = sensitivity.count();
-    let dofs = u.len();
-    let chunk = 256;
-    let partial: Result<Vec<Vec<Vec<f64>>>, MaterialError> = (0..membrane.triangles.len())
-        .collect::<Vec<_>>()
-        .par_chunks(chunk)
-        .map(|elements| {
-            let mut out = vec![vec![0.0; dofs]; n];
-            let mut ds = vec![Sym2::zeros(); n];
-            for &e in elements {
+    // Per element and parameter its nine nodal forces, in parallel; then
+    // summed into the dofs in element order (one buffer, not one dof
+    // vector per task and parameter).
+    let per_element = 9 * n;
+    let mut local = vec![0.0; membrane.triangles.len() * per_element];
+    local
+        .par_chunks_mut(per_element.max(1))
+        .enumerate()
+        .try_for_each_init(
+            || vec![Sym2::zeros(); n],
+            |ds, (e, out)| -> Result<(), MaterialError> {
                 let reference = &membrane.references[e];
                 let x = membrane.element_displacements(e, u);
                 let kin = reference.kinematics(&x);
-                sensitivity.stress_derivatives(&kin.c, &reference.frame, &mut ds)?;
-                let nodes = membrane.triangles[e];
-                for (j, s) in ds.iter().enumerate() {
+                sensitivity.stress_derivatives(&kin.c, &reference.frame, ds)?;
+                for (s, f_out) in ds.iter().zip(out.chunks_exact_mut(9)) {
                     let f = reference.stress_force(&kin.g, s, membrane.thickness);
-                    for (a, &node) in nodes.iter().enumerate() {
-                        for d in 0..3 {
-                            out[j][3 * node + d] += f[3 * a + d];
-                        }
+                    f_out.copy_from_slice(f.as_slice());
+                }
+                Ok(())
+            },
+        )?;
+    let mut total = vec![vec![0.0; u.len()]; n];
+    if n > 0 {
+        for (nodes, forces) in membrane
+            .triangles
+            .iter()
+            .zip(local.chunks_exact(per_element))
+        {
+            for (total_j, f) in total.iter_mut().zip(forces.chunks_exact(9)) {
+                for (a, &node) in nodes.iter().enumerate() {
+                    for d in 0..3 {
+                        total_j[3 * node + d] += f[3 * a + d];
                     }
                 }
-            }
-            Ok(out)
-        })
-        .collect();
-    let mut total = vec![vec![0.0; dofs]; n];
-    for part in partial? {
-        for (t, p) in total.iter_mut().zip(part) {
-            for (a, b) in t.iter_mut().zip(p) {
-                *a += b;
             }
         }
     }

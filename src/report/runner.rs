@@ -23,7 +23,7 @@ use crate::post::fields::{ElementFields, area_mean, element_fields};
 use crate::solver::explicit::{ExplicitError, ExplicitTimings};
 use crate::solver::newton::{
     ConvergedTangent, StepRecord, check_quasi_static, solve_quasi_static,
-    solve_quasi_static_with_tangent,
+    solve_quasi_static_observed,
 };
 use crate::solver::{
     CancelToken, DofMap, ExplicitParameters, ExplicitRecord, ExplicitResult, ExplicitSetUp,
@@ -738,42 +738,28 @@ fn solve_oat<R: Report>(
         } => {
             let mut u = vec![0.0; dofs.total];
             let params = newton_parameters(&params, cancel);
-            let on_step = |recorder: &mut OatRecorder<R>,
-                           progress: &mut Progress,
-                           record: &StepRecord,
-                           snapshot: &Snapshot| {
-                let detail = format!("step {}, {} iterations", record.step, record.iterations);
-                progress.update(record.load, record.reaction, &detail, final_load);
-                recorder.record(record.load, record.reaction, snapshot.u, |row| {
-                    row.iterations = Some(record.iterations);
-                });
-            };
-            let result = if recorder.report.wants_tangent() {
-                solve_quasi_static_with_tangent(
-                    model,
-                    dofs,
-                    &params,
-                    final_load,
-                    &stops,
-                    &mut u,
-                    |record, snapshot, tangent| {
-                        on_step(recorder, progress, record, snapshot);
+            let with_tangent = recorder.report.wants_tangent();
+            let result = solve_quasi_static_observed(
+                model,
+                dofs,
+                &params,
+                final_load,
+                &stops,
+                &mut u,
+                with_tangent,
+                |record, snapshot, tangent| {
+                    let detail = format!("step {}, {} iterations", record.step, record.iterations);
+                    progress.update(record.load, record.reaction, &detail, final_load);
+                    recorder.record(record.load, record.reaction, snapshot.u, |row| {
+                        row.iterations = Some(record.iterations);
+                    });
+                    if let Some(tangent) = tangent {
                         recorder
                             .report
                             .tangent(recorder.view, record, snapshot, tangent);
-                    },
-                )
-            } else {
-                solve_quasi_static(
-                    model,
-                    dofs,
-                    &params,
-                    final_load,
-                    &stops,
-                    &mut u,
-                    |record, snapshot| on_step(recorder, progress, record, snapshot),
-                )
-            }
+                    }
+                },
+            )
             .map_err(RunError::QuasiStatic)?;
             Ok(quasi_static_solved(result))
         }

@@ -25,6 +25,6 @@ pub use linear::{LinearSolverKind, SparseSolver};
 pub use newton::{
     ConvergedTangent, NewtonParameters, QuasiStaticResult, QuasiStaticSetupError, SolverTimings,
     Stabilisation, StabilisationRecord, StepRecord, check_quasi_static, solve_quasi_static,
-    solve_quasi_static_with_tangent,
+    solve_quasi_static_observed,
 };
 pub use status::{RunStatus, Snapshot};

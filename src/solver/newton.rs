@@ -831,47 +831,42 @@ pub fn solve_quasi_static(
     u: &mut [f64],
     mut on_step: impl FnMut(&StepRecord, &Snapshot),
 ) -> Result<QuasiStaticResult, QuasiStaticSetupError> {
-    let mut run = QuasiStaticRun::set_up(model, dofs, params, final_load, stops, u)?;
-    let mut observe =
-        |record: &StepRecord, snapshot: &Snapshot, _: Option<&mut ConvergedTangent>| {
-            on_step(record, snapshot)
-        };
-    let status = loop {
-        if let ControlFlow::Break(status) = run.step(&mut observe, false) {
-            break status;
-        }
-    };
-    Ok(run.wind_down(status))
+    solve_quasi_static_observed(
+        model,
+        dofs,
+        params,
+        final_load,
+        stops,
+        u,
+        false,
+        |record, snapshot, _| on_step(record, snapshot),
+    )
 }
 
-/// [`solve_quasi_static`], handing `on_step` also the tangent at every
-/// converged state, assembled there again and factorised once
-/// ([`ConvergedTangent`]): what direct differentiation needs, `K du/dp =
-/// −∂R/∂p` with one back-substitution per parameter
-/// (`docs/fit.md`, "Sensitivities"). One assembly and one factorisation
-/// per converged step on top of the solve; the factorisations are counted
-/// in the result.
+/// [`solve_quasi_static`], handing `on_step` also, when `with_tangent`,
+/// the tangent at every converged state, assembled there again and
+/// factorised once ([`ConvergedTangent`]; `None` otherwise): what direct
+/// differentiation needs, `K du/dp = −∂R/∂p` with one back-substitution
+/// per parameter (`docs/fit.md`, "Sensitivities"). One assembly and one
+/// factorisation per converged step on top of the solve; the
+/// factorisations are counted in the result.
 ///
 /// # Errors
 /// As [`solve_quasi_static`].
-pub fn solve_quasi_static_with_tangent(
+#[allow(clippy::too_many_arguments)]
+pub fn solve_quasi_static_observed(
     model: &mut Model,
     dofs: DofMap,
     params: &NewtonParameters,
     final_load: f64,
     stops: &[f64],
     u: &mut [f64],
-    mut on_step: impl FnMut(&StepRecord, &Snapshot, &mut ConvergedTangent),
+    with_tangent: bool,
+    mut on_step: impl FnMut(&StepRecord, &Snapshot, Option<&mut ConvergedTangent>),
 ) -> Result<QuasiStaticResult, QuasiStaticSetupError> {
     let mut run = QuasiStaticRun::set_up(model, dofs, params, final_load, stops, u)?;
-    let mut observe =
-        |record: &StepRecord, snapshot: &Snapshot, tangent: Option<&mut ConvergedTangent>| {
-            if let Some(tangent) = tangent {
-                on_step(record, snapshot, tangent);
-            }
-        };
     let status = loop {
-        if let ControlFlow::Break(status) = run.step(&mut observe, true) {
+        if let ControlFlow::Break(status) = run.step(&mut on_step, with_tangent) {
             break status;
         }
     };
