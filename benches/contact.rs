@@ -86,6 +86,7 @@ fn tool_at(
             smoothing: Default::default(),
             explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
+            compaction: None,
         },
     )
 }

@@ -145,6 +145,7 @@ fn model_of(membrane: MembraneModel, forming: bool) -> Model {
                 smoothing: Default::default(),
                 explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
                 explicit_damping: 0.2,
+                compaction: None,
             },
         ));
     }

@@ -174,6 +174,7 @@ fn term(surface: Arc<dyn RigidSurface>, reference: &[Vector3<f64>]) -> ToolConta
             smoothing: Default::default(),
             explicit_stiffness: ncform::model::ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
+            compaction: None,
         },
     )
 }

@@ -71,6 +71,7 @@ fn pressed_on_a_tool(cells: usize, penalty: ExplicitPenalty, time_step: f64, dep
             smoothing: Default::default(),
             explicit_stiffness: penalty,
             explicit_damping: 0.0,
+            compaction: None,
         },
     );
     let masses = Masses {
@@ -160,6 +161,7 @@ fn two_plies_pressed_together_carry_the_per_area_pressure() {
                 explicit_stiffness: ExplicitPenalty::PerArea(k_p),
                 explicit_damping: 0.0,
                 skin: 1.0,
+                compaction: None,
             },
         )
         .unwrap();

@@ -141,6 +141,134 @@ fn blankholder_at_rest_explicit() {
     );
 }
 
+/// The blankholder case with the explicit solver settling under
+/// mass-proportional damping `α = 800/s` over 0.06 s, a
+/// compliant layer `[ply.compaction]` of uncompacted thickness
+/// `thickness` (the ply's mid-surface at half of it, the blankholder on
+/// its top) and `contact` as the `[contact]` table.
+fn compacted_blankholder(law: &str, thickness: f64, contact: &str) -> String {
+    let half = 0.5 * thickness;
+    let text = edit(
+        &shipped("blankholder.toml"),
+        &[
+            (
+                "[ply.mesh]",
+                &format!("[ply.compaction]\nthickness = {thickness}\n{law}\n[ply.mesh]"),
+            ),
+            (
+                "centre = [0.0, 0.0, 0.15]",
+                &format!("centre = [0.0, 0.0, {half}]"),
+            ),
+            (
+                "origin = [0.0, 0.0, 0.3]",
+                &format!("origin = [0.0, 0.0, {thickness}]"),
+            ),
+            (
+                "[output]",
+                &format!("[explicit]\nduration = 0.06\ndamping = 800.0\n\n{contact}\n[output]"),
+            ),
+        ],
+    );
+    format!("solver = \"explicit\"\n{text}")
+}
+
+/// The compression `δ` [mm] of a layer `H` [mm] under the pressure `p`
+/// [MPa] of Toll's law with `p_c`, `n` (Eq. C1 solved for `δ`,
+/// `docs/theory.md`, "Compaction of the fabric layer").
+fn toll_compression(layer: f64, pressure: f64, p_c: f64, n: f64) -> f64 {
+    layer * (1.0 - (1.0 + pressure / p_c).powf(-1.0 / n))
+}
+
+/// Requirement: a blankholder lying on a ply with a compliant layer sinks
+/// until the layer carries its weight: the ply's upper half-layer is
+/// compressed by `δ_top` with `p(δ_top) = W/A` and the lower one by
+/// `δ_bottom` with `p(δ_bottom) = (W + w)/A` (`w` the ply's own weight),
+/// so the blankholder's displacement is `δ_top + δ_bottom` (Eq. C1; every
+/// node of the flat ply has the same compression, its force proportional
+/// to its area). The contact force on it equals its weight, the energy
+/// balance closes.
+///
+/// Tolerance: the blankholder (1.7 kg) rides on the two half-layers in
+/// series, `k = A f'/2 ≈ 625 N/mm` at this pressure (Eq. C2), so
+/// `ω ≈ 600/s`; the damping `α = 800/s` gives `ζ = α/2ω ≈ 0.66` and a
+/// decay `e^{−ζωt} = e^{−24}` over the 0.06 s: force and displacement are
+/// at rest to far below 1e-6, which is the tolerance (the round-off of
+/// summing 121 nodal forces is some 1e-14). The cap of the
+/// law (the penalty per unit area, 50 N/mm³) is 400 times the layer's
+/// tangent at this pressure (Eq. C2: 0.13 N/mm³), so no node
+/// reaches the knee and Eq. C1 holds exactly.
+#[test]
+fn blankholder_sinks_into_a_compliant_layer_by_the_packing_law() {
+    let dir = TempDir::new().unwrap();
+    let (p_c, n, thickness) = (6.9e-4, 12.0, 0.5);
+    let text = compacted_blankholder(
+        &format!("pressure = {p_c}\nexponent = {n}"),
+        thickness,
+        "[contact]\nexplicit_pressure_stiffness = 50.0",
+    );
+    let case = load(&text, dir.path());
+    let summary = run(&case);
+    let last = summary.history.last().unwrap();
+    let holder = &last.tools[1];
+    let area = 100.0 * 100.0;
+    let ply_weight = 0.30e-9 * area * 9810.0;
+    let expected = toll_compression(0.5 * thickness, BLANKHOLDER_WEIGHT / area, p_c, n)
+        + toll_compression(
+            0.5 * thickness,
+            (BLANKHOLDER_WEIGHT + ply_weight) / area,
+            p_c,
+            n,
+        );
+    assert!(
+        (holder.displacement - expected).abs() <= 1e-6 * expected,
+        "sank {} mm, the packing law gives {expected} mm",
+        holder.displacement
+    );
+    assert!(
+        (holder.force - BLANKHOLDER_WEIGHT).abs() <= 1e-6 * BLANKHOLDER_WEIGHT,
+        "contact force {} N, weight {BLANKHOLDER_WEIGHT} N",
+        holder.force
+    );
+    let figures = summary.explicit.as_ref().unwrap();
+    assert!(
+        figures.max_relative_balance_error <= 1e-3,
+        "energy balance {}",
+        figures.max_relative_balance_error
+    );
+}
+
+/// Requirement: past the knee, where the law's tangent reaches the
+/// penalty (here 0.05 N/mm³ per unit area, below the layer's 0.06 N/mm³
+/// at the start), the layer goes on linearly with the penalty (Eq. C3):
+/// `δ = δ* + (p − p(δ*))/k` with `δ*` from Eq. C2 — the knee at zero
+/// here, since the law starts stiffer than the cap, so `δ = p/k`, the
+/// linear penalty of the paper's model.
+///
+/// Tolerance: the two springs in series, `k A/2 = 250 N/mm` under 1.7 kg,
+/// `ω ≈ 380/s`, `ζ = 800/(2·380) ≈ 1.05`: the slower mode decays as
+/// `e^{−ω(ζ−√(ζ²−1))t} ≈ e^{−17}` over the 0.06 s, below the 1e-6 kept.
+#[test]
+fn a_layer_stiffer_than_the_penalty_is_the_linear_penalty() {
+    let dir = TempDir::new().unwrap();
+    let (p_c, n, thickness, k) = (1e-3, 15.0, 0.5, 0.05);
+    let text = compacted_blankholder(
+        &format!("pressure = {p_c}\nexponent = {n}"),
+        thickness,
+        &format!("[contact]\nexplicit_pressure_stiffness = {k}"),
+    );
+    let case = load(&text, dir.path());
+    let summary = run(&case);
+    let holder = &summary.history.last().unwrap().tools[1];
+    let area = 100.0 * 100.0;
+    let ply_weight = 0.30e-9 * area * 9810.0;
+    let expected = (2.0 * BLANKHOLDER_WEIGHT + ply_weight) / area / k;
+    assert!(
+        (holder.displacement - expected).abs() <= 1e-6 * expected,
+        "sank {} mm, the linear penalty gives {expected} mm",
+        holder.displacement
+    );
+}
+
 // ---------------------------------------------------------------------------
 // Friction patch
 // ---------------------------------------------------------------------------
@@ -365,6 +493,61 @@ fn bad_forming_cases_name_key_value_and_expectation() {
                 "either contact.explicit_stiffness",
                 "not both",
             ],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[ply.mesh]",
+                    "[ply.compaction]\nexponent = 10.0\n[ply.mesh]",
+                )],
+            ),
+            vec![
+                "ply[0].compaction.pressure",
+                "(missing)",
+                "pressure scale p_c",
+            ],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[ply.mesh]",
+                    "[ply.compaction]\npressure = 1e-3\nexponent = 1.0\n[ply.mesh]",
+                )],
+            ),
+            vec!["ply[0].compaction.exponent", "1", "> 1"],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[ply.mesh]",
+                    "[ply.compaction]\npressure = 1e-3\nexponent = 10.0\nthickness = -0.5\n[ply.mesh]",
+                )],
+            ),
+            vec!["ply[0].compaction.thickness", "-0.5", "> 0 mm"],
+        ),
+        (
+            edit(
+                &base,
+                &[(
+                    "[ply.mesh]",
+                    "[ply.compaction]\npressure = 1e-3\nexponent = 10.0\nstiffness = 1.0\n[ply.mesh]",
+                )],
+            ),
+            vec!["stiffness", "pressure", "exponent"],
+        ),
+        (
+            // The blankholder case is quasi-static.
+            edit(
+                &base,
+                &[(
+                    "[ply.mesh]",
+                    "[ply.compaction]\npressure = 1e-3\nexponent = 10.0\n[ply.mesh]",
+                )],
+            ),
+            vec!["compaction", "explicit solver", "augmented Lagrangian"],
         ),
     ];
     for (text, parts) in cases {

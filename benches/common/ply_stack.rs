@@ -33,6 +33,7 @@ pub fn ply_stack(
             explicit_stiffness: ExplicitPenalty::DEFAULT,
             explicit_damping: 0.2,
             skin,
+            compaction: None,
         },
     )
     .expect("ply contact")

@@ -253,6 +253,24 @@ pub const BOUNDS: &[Bound] = &[
         hint: "dry fabrics: 1e-3–100 N·mm (the paper: B11 = 4.06, B22 = 0.018)",
         why: "1e9 N·mm is the plate stiffness of 40 mm of steel; B κ² of 1e308 overflows at any curvature; usual: dry fabrics",
     },
+    Bound {
+        keys: &["ply.compaction.pressure"],
+        rule: "a pressure scale > 0 MPa",
+        unit: "MPa",
+        hard: Interval::left_open(0.0, 1.0e4),
+        usual: Some(Interval::closed(1.0e-5, 0.1)),
+        hint: "dry fabrics: 1e-4–1e-2 MPa (docs/theory.md, \"Compaction of the fabric layer\")",
+        why: "10 GPa is the stiffness of the fibres themselves, no packing; usual: the packing laws of dry reinforcements",
+    },
+    Bound {
+        keys: &["ply.compaction.exponent"],
+        rule: "a packing exponent > 1",
+        unit: "",
+        hard: Interval::left_open(1.0, 100.0),
+        usual: Some(Interval::closed(3.0, 20.0)),
+        hint: "dry fabrics: 5–15 (Toll's planar network: 5; aligned rovings: higher)",
+        why: "n ≤ 1 stores no finite energy in the layer's law (Eq. C4); above 100 the layer is rigid at once; usual: dry reinforcements",
+    },
     // --- [ply.mesh] generators, [[zone]] ---
     Bound {
         keys: &["ply.mesh.size"],

@@ -29,10 +29,10 @@ use super::term::{
     rounded_up,
 };
 use crate::contact::kernel::{
-    AugmentationNorms, AugmentedLagrangian, ContactError, ContactStatus, ImplicitContactState,
-    ImplicitResponse, PenaltyBatch, PenaltyContact, PenaltyInput, PenaltyOutput, PenaltyState,
-    Smoothing, couple_tool_translation, max_curvature, penalty_lanes_one_by_one,
-    stable_penalty_stiffness,
+    AugmentationNorms, AugmentedLagrangian, CompactionLaw, ContactError, ContactStatus,
+    ImplicitContactState, ImplicitResponse, NodalCompaction, PenaltyBatch, PenaltyContact,
+    PenaltyInput, PenaltyOutput, PenaltyState, Smoothing, couple_tool_translation, max_curvature,
+    penalty_lanes_one_by_one, stable_penalty_stiffness,
 };
 use crate::contact::{RigidSurface, SurfaceNormal};
 
@@ -145,6 +145,11 @@ pub struct ContactOptions {
     /// Explicit normal contact damping as a fraction of the critical
     /// damping `2 √(k_N m)` of each node's penalty spring.
     pub explicit_damping: f64,
+    /// The ply's compliant layer on the explicit path: the normal force of
+    /// Toll's packing law over the offset's layer (`docs/theory.md`,
+    /// "Compaction of the fabric layer") in place of the linear penalty,
+    /// its tangent capped at the penalty; `None`: the linear penalty.
+    pub compaction: Option<CompactionLaw>,
 }
 
 /// How the explicit path chooses each node's penalty stiffness
@@ -237,6 +242,9 @@ pub struct ToolContact {
     /// increment \[N\] (the dissipation is the trapezoidal work
     /// `−½ (F_{n−1} + F_n)·Δy`, the rule the solver's balance follows).
     pairs: Vec<PenaltyBatch<PAIR_LANES>>,
+    /// The compliant layer's law of each pair, in the batches' order
+    /// (empty: the linear penalty).
+    layers: Vec<[NodalCompaction; PAIR_LANES]>,
     /// Per node: the explicit broad phase's bound.
     clearances: Vec<Clearance>,
     /// Whether the explicit path uses the broad phase (on by default; off
@@ -297,6 +305,7 @@ impl ToolContact {
             responses: vec![ImplicitResponse::default_open(); n],
             springs: Vec::new(),
             pairs: Vec::new(),
+            layers: Vec::new(),
             clearances: vec![Clearance::UNKNOWN; n],
             broad_phase: true,
             travelled: 0.0,
@@ -620,6 +629,7 @@ impl Term for ToolContact {
         let n = self.nodes.len();
         let mut springs = Vec::with_capacity(n);
         let mut dashpots = Vec::with_capacity(n);
+        let mut nodal_layers = Vec::new();
         for i in 0..n {
             let m = masses.node[self.nodes[i]];
             let stiffness = self
@@ -627,9 +637,15 @@ impl Term for ToolContact {
                 .explicit_stiffness
                 .stiffness(m, self.areas[i], time_step)
                 .map_err(|e| self.failure(i, e.to_string()))?;
-            let spring =
+            let mut spring =
                 PenaltyContact::new(stiffness, stiffness, self.options.friction, self.offsets[i])
                     .map_err(|e| self.failure(i, e.to_string()))?;
+            if let Some(law) = &self.options.compaction {
+                let layer = NodalCompaction::new(law, self.areas[i], self.offsets[i], stiffness)
+                    .map_err(|e| self.failure(i, e.to_string()))?;
+                spring = spring.with_compaction(layer);
+                nodal_layers.push(layer);
+            }
             let critical = 2.0 * (spring.normal_stiffness() * m).sqrt();
             springs.push(spring);
             dashpots.push(self.options.explicit_damping * critical);
@@ -644,6 +660,14 @@ impl Term for ToolContact {
                 )
             })
             .collect();
+        // Padded like the pairs: the last batch repeats the last node.
+        self.layers = if nodal_layers.len() == n {
+            (0..n.div_ceil(PAIR_LANES))
+                .map(|b| std::array::from_fn(|w| nodal_layers[(b * PAIR_LANES + w).min(n - 1)]))
+                .collect()
+        } else {
+            Vec::new()
+        };
         self.springs = springs;
         self.clearances.fill(Clearance::UNKNOWN);
         self.deadlines = vec![f64::NEG_INFINITY; self.pairs.len()];
@@ -680,6 +704,7 @@ impl Term for ToolContact {
             self.deadlines.fill(f64::NEG_INFINITY);
         }
         let travelled = self.travelled;
+        let layers = &self.layers;
         node_out
             .par_chunks_mut(4 * NODE_CHUNK)
             .zip(self.pairs.par_chunks_mut(CHUNK_BATCHES))
@@ -753,7 +778,10 @@ impl Term for ToolContact {
                     // (a pair culled and released stays so, its previous
                     // position moved on); forces and outputs in node order, the
                     // force on the tool summed in node order.
+                    let first_batch = chunk * CHUNK_BATCHES;
                     let kernel = KernelChunk {
+                        layers: (!layers.is_empty())
+                            .then(|| &layers[first_batch..first_batch + pairs.len()]),
                         pairs,
                         inputs: &inputs,
                         forces: f,
@@ -918,6 +946,8 @@ impl Term for ToolContact {
 /// outputs go.
 struct KernelChunk<'a> {
     pairs: &'a mut [PenaltyBatch<PAIR_LANES>],
+    /// The compliant layer's laws of the batches (`None`: linear).
+    layers: Option<&'a [[NodalCompaction; PAIR_LANES]]>,
     inputs: &'a [PenaltyInput<PAIR_LANES>],
     forces: &'a mut [f64],
     outputs: &'a mut [NodeContact],
@@ -955,6 +985,7 @@ impl KernelChunk<'_> {
             &PenaltyInput<PAIR_LANES>,
             &mut PenaltyOutput<PAIR_LANES>,
             f64,
+            Option<&[NodalCompaction; PAIR_LANES]>,
         ) -> u32,
     ) -> (Option<usize>, f64, u64) {
         let mut first_failure = None;
@@ -982,7 +1013,8 @@ impl KernelChunk<'_> {
                 batch.previous_position = input.position;
                 settled |= 1 << b;
             } else {
-                let failed = kernel(batch, input, &mut result, self.time_step) & active;
+                let layer = self.layers.map(|l| &l[b]);
+                let failed = kernel(batch, input, &mut result, self.time_step, layer) & active;
                 if failed != 0 && first_failure.is_none() {
                     first_failure = Some(b * PAIR_LANES + failed.trailing_zeros() as usize);
                 }
@@ -1033,9 +1065,10 @@ impl pulp::WithSimd for Avx2Kernel<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> (Option<usize>, f64, u64) {
         let ctx = crate::material::lanes::x86::F64x4::new(self.simd, [0.0; PAIR_LANES]);
-        self.chunk.batches(|batch, input, output, time_step| {
-            crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step)
-        })
+        self.chunk
+            .batches(|batch, input, output, time_step, layer| {
+                crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step, layer)
+            })
     }
 }
 

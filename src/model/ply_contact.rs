@@ -27,7 +27,9 @@ use super::term::{
     FrequencyBound, Masses, State, Stencils, Term, TermEnergy, TermFailure, rounded_up,
 };
 use crate::contact::SurfaceNormal;
-use crate::contact::kernel::{ContactStatus, PenaltyContact, PenaltyState, normal_dashpot};
+use crate::contact::kernel::{
+    CompactionLaw, ContactStatus, NodalCompaction, PenaltyContact, PenaltyState, normal_dashpot,
+};
 use crate::contact::ply_pair::{
     CandidateLists, closest_candidate, side_of, signed_distance, triangle_boxes,
 };
@@ -79,6 +81,10 @@ pub struct PlyContactOptions {
     pub explicit_damping: f64,
     /// Skin of the Verlet candidate lists \[mm\].
     pub skin: f64,
+    /// The layer between the plies (`docs/theory.md`, "Compaction of the
+    /// fabric layer"): Toll's packing law over the contact offset, each
+    /// pass carrying half of each node's area; `None`: the linear penalty.
+    pub compaction: Option<CompactionLaw>,
 }
 
 /// The per-node figures a user sees (VTU fields) of a ply–ply contact.
@@ -489,8 +495,15 @@ impl Term for PlyContact {
                         .explicit_stiffness
                         .stiffness(effective, self.areas[k][i], time_step)
                         .map_err(|e| self.failure(n, e.to_string()))?;
-                let spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
+                let mut spring = PenaltyContact::new(k_n, k_n, self.options.friction, self.offset)
                     .map_err(|e| self.failure(n, e.to_string()))?;
+                if let Some(law) = &self.options.compaction {
+                    // Each pass carries half of the layer's pressure, as it
+                    // takes half of the penalty.
+                    let layer = NodalCompaction::new(law, 0.5 * self.areas[k][i], self.offset, k_n)
+                        .map_err(|e| self.failure(n, e.to_string()))?;
+                    spring = spring.with_compaction(layer);
+                }
                 dashpots.push(self.options.explicit_damping * 2.0 * (k_n * effective).sqrt());
                 springs.push(spring);
             }

@@ -42,8 +42,8 @@ pub struct BuiltPly {
     pub membrane: MembraneModel,
     /// Lumped reference area of each of the ply's nodes `Σ A0/3` \[mm²\].
     pub nodal_area: Vec<f64>,
-    /// Thickness \[mm\].
-    pub thickness: f64,
+    /// Thickness its contacts see \[mm\] ([`PlySpec::contact_thickness`]).
+    pub contact_thickness: f64,
 }
 
 impl BuiltPly {
@@ -488,7 +488,7 @@ impl FormingCase {
                 mesh,
                 node_offset: offset,
                 membrane,
-                thickness: spec.thickness,
+                contact_thickness: spec.contact_thickness(),
             });
         }
         Ok(plies)
@@ -686,7 +686,10 @@ impl FormingCase {
         node_count: usize,
     ) -> Result<ToolContact, BuildError> {
         let (spec, direction, extra) = (&tool.spec, tool.direction, tool.extra);
-        let offset = self.contact.offset.unwrap_or(0.5 * ply_spec.thickness);
+        let offset = self
+            .contact
+            .offset
+            .unwrap_or(0.5 * ply_spec.contact_thickness());
         let count = ply.mesh.nodes.len();
         let mean_area = ply.nodal_area.iter().sum::<f64>() / count.max(1) as f64;
         let penalties = self.contact_penalties(spec, ply, ply_spec, mean_area)?;
@@ -718,6 +721,7 @@ impl FormingCase {
                 smoothing: self.contact.smoothing,
                 explicit_stiffness: self.contact.explicit_penalty(),
                 explicit_damping: self.contact.explicit_damping,
+                compaction: ply_spec.compaction.map(|c| c.law),
             },
         ))
     }
@@ -770,7 +774,7 @@ impl FormingCase {
                         .collect(),
                     reference: ply.mesh.nodes.to_vec(),
                     triangles: ply.mesh.triangles.clone(),
-                    thickness: ply.thickness,
+                    thickness: ply.contact_thickness,
                 }
             };
             let [a, b] = spec.plies;
@@ -784,6 +788,7 @@ impl FormingCase {
                     explicit_stiffness: self.contact.explicit_penalty(),
                     explicit_damping: self.contact.explicit_damping,
                     skin: spec.skin,
+                    compaction: self.plies[a].compaction.map(|c| c.law),
                 },
             )
             .map_err(|e| BuildError::PlyContact {

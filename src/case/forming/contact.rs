@@ -130,6 +130,17 @@ pub(super) fn ply_contacts(
                 "a pair of plies no other [[ply_contact]] names",
             ));
         }
+        if plies[a].compaction != plies[b].compaction {
+            return Err(check.invalid(
+                line,
+                &key("plies"),
+                shown,
+                &format!(
+                    "two plies with the same [ply.compaction] law or both without one (the layer between them is one packing law: docs/theory.md, \"Compaction of the fabric layer\"); \"{}\" and \"{}\" differ",
+                    plies[a].name, plies[b].name
+                ),
+            ));
+        }
         let friction =
             bound("ply_contact.friction").spanned(check, &c.friction, &key("friction"))?;
         let skin = match &c.skin {

@@ -330,6 +330,16 @@ fn solver_settings(
             "a case for the explicit solver: the quasi-static path does not take ply–ply contact (set solver = \"explicit\")",
         ));
     }
+    if solver_kind == SolverKind::QuasiStatic
+        && let Some(p) = plies.iter().find(|p| p.compaction.is_some())
+    {
+        return Err(check.invalid(
+            p.compaction_line,
+            &format!("ply \"{}\": compaction", p.name),
+            "[ply.compaction]".to_string(),
+            "a case for the explicit solver: the quasi-static path's augmented Lagrangian contact has no compliant layer (set solver = \"explicit\" or remove [ply.compaction])",
+        ));
+    }
     if solver_kind == SolverKind::Explicit
         && let Some(p) = plies.iter().find(|p| p.density.is_none())
     {

@@ -9,11 +9,12 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use toml::Spanned;
 
-use super::raw::{BendingRaw, PlyMeshRaw, PlyRaw};
+use super::raw::{BendingRaw, CompactionRaw, PlyMeshRaw, PlyRaw};
 use super::{shown_list, vector3};
 use crate::case::bounds::bound;
 use crate::case::explicit::{DEFAULT_AREAL_MASS, KG_PER_M2_IN_T_PER_MM2};
 use crate::config::{ConfigError, TomlChecker};
+use crate::contact::kernel::CompactionLaw;
 use crate::material::MaterialSpec;
 
 /// Where a ply's mesh comes from.
@@ -83,9 +84,36 @@ pub struct PlySpec {
     /// Bending stiffnesses `(B11, B22, B66)` [N·mm], `None` for a membrane
     /// without bending.
     pub bending: Option<[f64; 3]>,
+    /// The through-thickness packing law of the ply's layer in its
+    /// contacts (explicit path; `docs/theory.md`, "Compaction of the
+    /// fabric layer"), `None`: the rigid-membrane penalty of the paper's
+    /// model.
+    pub compaction: Option<PlyCompaction>,
+    /// Line of the `compaction` table (0 when absent).
+    pub compaction_line: usize,
     /// Line of the `[ply.mesh]` key the mesh comes from (`file` or
     /// `shape`) in the case file: errors of the mesh name it.
     pub mesh_line: usize,
+}
+
+/// A ply's compliant layer: its uncompacted thickness and its packing law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlyCompaction {
+    /// The layer's thickness at zero pressure \[mm\]: the contacts' offsets
+    /// (half of it to a tool, the mean of two plies' between them). The
+    /// membrane keeps [`PlySpec::thickness`], the thickness its law's
+    /// parameters were identified with.
+    pub thickness: f64,
+    /// Toll's packing law (Eq. C1).
+    pub law: CompactionLaw,
+}
+
+impl PlySpec {
+    /// The thickness its contacts see \[mm\]: the uncompacted layer's
+    /// when the ply has one, else the membrane's.
+    pub fn contact_thickness(&self) -> f64 {
+        self.compaction.map_or(self.thickness, |c| c.thickness)
+    }
 }
 
 /// The paper's bending stiffnesses `(B11, B22)` [N·mm] (Section 3) and the
@@ -167,6 +195,7 @@ fn ply_spec(
         Some(a) => bounded(a, "fibre_angle_deg")?,
     };
     let bending = bending(check, &p.bending, i)?;
+    let compaction = compaction(check, &p.compaction, i, thickness)?;
     let mesh = ply_mesh(check, &p.mesh, i, base_dir)?;
     let mesh_line = match (&p.mesh.file, &p.mesh.shape) {
         (Some(f), _) => check.line_of(f),
@@ -181,8 +210,55 @@ fn ply_spec(
         density,
         fibre_angle_deg,
         bending,
+        compaction,
+        compaction_line: p.compaction.as_ref().map_or(0, |c| check.line_of(c)),
         mesh_line,
     })
+}
+
+/// A ply's `[ply.compaction]` table: the law's two keys, each within its
+/// bounds, and the layer's thickness (the membrane's `thickness` when left
+/// out).
+fn compaction(
+    check: &TomlChecker,
+    c: &Option<Spanned<CompactionRaw>>,
+    i: usize,
+    membrane_thickness: f64,
+) -> Result<Option<PlyCompaction>, ConfigError> {
+    let Some(table) = c else {
+        return Ok(None);
+    };
+    let key = |k: &str| format!("ply[{i}].compaction.{k}");
+    // The values carry no span of their own: the line of the table.
+    let line = check.line_of(table);
+    let value = |v: Option<f64>, k: &str, what: &str| match v {
+        None => Err(check.missing(&key(k), what)),
+        Some(x) => bound(&format!("ply.compaction.{k}")).check(check, x, line, &key(k)),
+    };
+    let t = table.get_ref();
+    let thickness = match t.thickness {
+        None => membrane_thickness,
+        Some(x) => bound("ply.thickness").check(check, x, line, &key("thickness"))?,
+    };
+    let pressure = value(
+        t.pressure,
+        "pressure",
+        "the pressure scale p_c [MPa] of the packing law (docs/theory.md, \"Compaction of the fabric layer\")",
+    )?;
+    let exponent = value(
+        t.exponent,
+        "exponent",
+        "the packing exponent n > 1 (docs/theory.md, \"Compaction of the fabric layer\")",
+    )?;
+    let law = CompactionLaw::new(pressure, exponent).map_err(|e| {
+        check.invalid(
+            line,
+            &key("exponent"),
+            crate::config::readable_number(exponent),
+            &e.to_string(),
+        )
+    })?;
+    Ok(Some(PlyCompaction { thickness, law }))
 }
 
 /// A ply's bending stiffnesses `(B11, B22, B66)` [N·mm] from its `bending`

@@ -41,7 +41,17 @@ pub(super) struct PlyRaw {
     pub(super) areal_mass: Option<Spanned<f64>>,
     pub(super) fibre_angle_deg: Option<Spanned<f64>>,
     pub(super) bending: Option<Spanned<BendingRaw>>,
+    pub(super) compaction: Option<Spanned<CompactionRaw>>,
     pub(super) mesh: PlyMeshRaw,
+}
+
+/// `[ply.compaction]`: Toll's packing law of the ply's layer.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CompactionRaw {
+    pub(super) thickness: Option<f64>,
+    pub(super) pressure: Option<f64>,
+    pub(super) exponent: Option<f64>,
 }
 
 /// `bending = false` or a table of stiffnesses.

@@ -32,6 +32,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::compaction::NodalCompaction;
 use super::{
     ContactError, ContactStatus, check_point, check_scalar, check_vector, finite_result,
     non_negative, positive,
@@ -92,6 +93,9 @@ pub struct PenaltyContact {
     tangential_stiffness: f64,
     friction: f64,
     offset: f64,
+    /// The compliant layer's law in place of the linear normal spring
+    /// ([`super::compaction`]); `None`: `f_N = k_N p`.
+    compaction: Option<NodalCompaction>,
 }
 
 impl PenaltyContact {
@@ -112,7 +116,36 @@ impl PenaltyContact {
             tangential_stiffness: positive("tangential_stiffness", tangential_stiffness)?,
             friction: non_negative("friction", friction)?,
             offset: non_negative("offset", offset)?,
+            compaction: None,
         })
+    }
+
+    /// The same settings with the normal force of the compliant layer
+    /// `compaction` (Eq. C1–C4 of [`super::compaction`]) in place of
+    /// `k_N p`; its tangent is capped at `k_N`, so the frequency bound
+    /// below still holds.
+    pub fn with_compaction(mut self, compaction: NodalCompaction) -> Self {
+        self.compaction = Some(compaction);
+        self
+    }
+
+    /// The compliant layer's law, if any.
+    pub fn compaction(&self) -> Option<&NodalCompaction> {
+        self.compaction.as_ref()
+    }
+
+    /// The normal force \[N\] and stored normal energy [N·mm] at the
+    /// penetration `penetration > 0` \[mm\]: `k_N p` and `½ k_N p²`, or the
+    /// compliant layer's (Eq. C1–C4).
+    #[inline(always)]
+    pub fn normal_response(&self, penetration: f64) -> (f64, f64) {
+        match &self.compaction {
+            Some(c) => c.force_and_energy(penetration),
+            None => {
+                let normal_force = self.normal_stiffness * penetration;
+                (normal_force, 0.5 * normal_force * penetration)
+            }
+        }
     }
 
     /// Settings with `k_N = k_T = c · 4 m/Δt²` from
@@ -306,7 +339,7 @@ impl PenaltyContact {
 
         let response = if gap < 0.0 {
             let penetration = -gap;
-            let normal_force = self.normal_stiffness * penetration;
+            let (normal_force, normal_energy) = self.normal_response(penetration);
             let limit = self.friction * normal_force;
             let trial_norm = trial.norm();
             let (status, force, spring, plastic) = if self.friction > 0.0 && trial_norm <= limit {
@@ -336,7 +369,7 @@ impl PenaltyContact {
                 residual: force - normal_force * normal,
                 dissipated,
                 next_spring: spring,
-                normal_energy: 0.5 * normal_force * penetration,
+                normal_energy,
                 tangential_energy: 0.5 * k_t * spring.norm_squared(),
             }
         } else {

@@ -16,7 +16,7 @@
 
 use nalgebra::Vector3;
 
-use super::{PenaltyContact, PenaltyState};
+use super::{NodalCompaction, PenaltyContact, PenaltyState};
 use crate::material::lanes::Real;
 
 /// The settings and the state of `W` node–tool pairs of the explicit
@@ -230,7 +230,9 @@ fn sum<V: Real>(zero: V, a: &[V; 3]) -> V {
 /// answers `input`, for the time step `time_step` \[s\]: Eq. E1–E7
 /// (`docs/contact-kernels.md`) as [`PenaltyContact::update_trusted`]
 /// followed by [`normal_dashpot`] compute them, lane by lane with the same
-/// bits. Every lane's state is updated in `batch` and its force and
+/// bits. With `laws`, lane `w`'s normal force and energy are those of the
+/// compliant layer `laws[w]` (Eq. C1–C4 of [`super::compaction`], one lane
+/// at a time), as a [`PenaltyContact`] with that law computes them. Every lane's state is updated in `batch` and its force and
 /// figures written to `output`; the returned bits mark the lanes whose
 /// response is not finite (the one-pair kernel rejects those).
 ///
@@ -243,6 +245,7 @@ pub fn penalty_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     input: &PenaltyInput<W>,
     output: &mut PenaltyOutput<W>,
     time_step: f64,
+    laws: Option<&[NodalCompaction; W]>,
 ) -> u32 {
     let zero = ctx.splat(0.0);
     let vector = |a: &[[f64; W]; 3]| [ctx.load(a[0]), ctx.load(a[1]), ctx.load(a[2])];
@@ -284,7 +287,18 @@ pub fn penalty_lanes<V: Real<Array = [f64; W]>, const W: usize>(
     // Closed (Eq. E1, E3): stick or slip.
     let closed = gap.lt(zero);
     let penetration = -gap;
-    let normal_force = k_n * penetration;
+    let (normal_force, law_energy) = match laws {
+        None => (k_n * penetration, None),
+        Some(laws) => {
+            let compression = penetration.store();
+            let responses: [(f64, f64); W] =
+                std::array::from_fn(|w| laws[w].force_and_energy(compression[w]));
+            (
+                ctx.load(responses.map(|r| r.0)),
+                Some(ctx.load(responses.map(|r| r.1))),
+            )
+        }
+    };
     let limit = friction * normal_force;
     let trial_norm = norm_squared(zero, &trial).sqrt();
     let stick = closed & friction.gt(zero) & trial_norm.le(limit);
@@ -323,7 +337,11 @@ pub fn penalty_lanes<V: Real<Array = [f64; W]>, const W: usize>(
         residual[c] = force[c] - normal_force * normal[c];
     }
     let dissipated = V::select(closed, closed_dissipated, open_dissipated);
-    let normal_energy = V::select(closed, normal_force * 0.5 * penetration, zero);
+    let normal_energy = V::select(
+        closed,
+        law_energy.unwrap_or_else(|| normal_force * 0.5 * penetration),
+        zero,
+    );
     let tangential_energy = V::select(closed, k_t * 0.5 * norm_squared(zero, &next_spring), zero);
     let slip_length = ctx.load(batch.slip_length) + norm_squared(zero, &plastic).sqrt();
     let total_dissipated = ctx.load(batch.dissipated) + dissipated;
@@ -391,12 +409,21 @@ pub fn penalty_lanes_one_by_one<const W: usize>(
     input: &PenaltyInput<W>,
     output: &mut PenaltyOutput<W>,
     time_step: f64,
+    laws: Option<&[NodalCompaction; W]>,
 ) -> u32 {
     let mut failed = 0;
     for w in 0..W {
         let mut one = batch.lane(w);
         let mut out = PenaltyOutput::<1>::default();
-        failed |= penalty_lanes(0.0_f64, &mut one, &input.lane(w), &mut out, time_step) << w;
+        let law = laws.map(|l| [l[w]]);
+        failed |= penalty_lanes(
+            0.0_f64,
+            &mut one,
+            &input.lane(w),
+            &mut out,
+            time_step,
+            law.as_ref(),
+        ) << w;
         batch.set_lane(w, &one);
         output.set_lane(w, &out);
     }
@@ -418,6 +445,7 @@ mod tests {
     #[allow(clippy::type_complexity)]
     fn random_pair(
         rng: &mut StdRng,
+        compaction: bool,
     ) -> (
         PenaltyContact,
         f64,
@@ -444,7 +472,19 @@ mod tests {
         let damped_force = v(rng, 0.1);
         let k = 10.0_f64.powf(rng.random_range(1.0..4.0));
         let friction = [0.0, 0.147, 0.336][rng.random_range(0..3)];
-        let law = PenaltyContact::new(k, k * rng.random_range(0.5..1.5), friction, 0.15).unwrap();
+        let mut law =
+            PenaltyContact::new(k, k * rng.random_range(0.5..1.5), friction, 0.15).unwrap();
+        if compaction {
+            // A soft layer whose knee lies within the sampled penetrations
+            // (a few nm to 10 µm) or beyond them.
+            let layer = crate::contact::kernel::CompactionLaw::new(
+                10.0_f64.powf(rng.random_range(-4.0..-1.0)),
+                rng.random_range(2.0..12.0),
+            )
+            .unwrap();
+            let nodal = NodalCompaction::new(&layer, rng.random_range(1.0..20.0), 0.15, k).unwrap();
+            law = law.with_compaction(nodal);
+        }
         let dashpot = if rng.random_range(0.0..1.0) < 0.2 {
             0.0
         } else {
@@ -495,9 +535,12 @@ mod tests {
         let time_step = 1.2e-6;
         let mut stuck = 0;
         let mut slipped = 0;
-        for _ in 0..2_000 {
-            let pairs: [_; 4] = std::array::from_fn(|_| random_pair(&mut rng));
+        for round in 0..2_000 {
+            let compaction = round % 2 == 1;
+            let pairs: [_; 4] = std::array::from_fn(|_| random_pair(&mut rng, compaction));
             let laws = pairs.each_ref().map(|p| p.0);
+            let layers = laws.map(|l| l.compaction().copied());
+            let layers = compaction.then(|| layers.map(|l| l.unwrap()));
             let dashpots = pairs.each_ref().map(|p| p.1);
             let states = pairs.each_ref().map(|p| p.2);
             let mut batch = PenaltyBatch::new(&laws, &dashpots, &states);
@@ -566,7 +609,13 @@ mod tests {
 
             let mut one_by_one = batch;
             let mut output = PenaltyOutput::<4>::default();
-            let failed = penalty_lanes_one_by_one(&mut one_by_one, &input, &mut output, time_step);
+            let failed = penalty_lanes_one_by_one(
+                &mut one_by_one,
+                &input,
+                &mut output,
+                time_step,
+                layers.as_ref(),
+            );
             assert_eq!(failed, 0);
             assert_eq!(bits(&one_by_one, &output), want);
 
@@ -578,13 +627,21 @@ mod tests {
                     input: &'a PenaltyInput<4>,
                     output: &'a mut PenaltyOutput<4>,
                     time_step: f64,
+                    layers: Option<&'a [NodalCompaction; 4]>,
                 }
                 impl pulp::WithSimd for Run<'_> {
                     type Output = u32;
                     #[inline(always)]
                     fn with_simd<S: pulp::Simd>(self, _: S) -> u32 {
                         let ctx = crate::material::lanes::x86::F64x4::new(self.simd, [0.0; 4]);
-                        penalty_lanes(ctx, self.batch, self.input, self.output, self.time_step)
+                        penalty_lanes(
+                            ctx,
+                            self.batch,
+                            self.input,
+                            self.output,
+                            self.time_step,
+                            self.layers,
+                        )
                     }
                 }
                 let mut simd_batch = batch;
@@ -597,6 +654,7 @@ mod tests {
                         input: &input,
                         output: &mut simd_output,
                         time_step,
+                        layers: layers.as_ref(),
                     },
                 );
                 assert_eq!(failed, 0);
@@ -620,7 +678,7 @@ mod tests {
         let mut input = PenaltyInput::<4>::default();
         input.position[1][2] = f64::NAN;
         let mut output = PenaltyOutput::default();
-        let failed = penalty_lanes_one_by_one(&mut batch, &input, &mut output, 1e-6);
+        let failed = penalty_lanes_one_by_one(&mut batch, &input, &mut output, 1e-6, None);
         assert_eq!(failed, 0b100);
         let mut one = state;
         let mut y = Vector3::zeros();

@@ -26,10 +26,12 @@
 //! `Δs = P (y − y_ref)` with `P = I − n⊗n` at the current `y`: the
 //! tangential part of the node's relative motion since the reference.
 
+pub mod compaction;
 pub mod explicit;
 pub mod implicit;
 pub mod lanes;
 
+pub use compaction::{CompactionLaw, NodalCompaction};
 pub use explicit::{
     PenaltyContact, PenaltyResponse, PenaltyState, max_curvature, normal_dashpot,
     stable_penalty_stiffness,
