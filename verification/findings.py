@@ -31,7 +31,6 @@ itself (a coarsened copy of each case, verify_findings.py).
 """
 
 import json
-import math
 import os
 
 import numpy as np
@@ -394,8 +393,8 @@ def oat_necking(folder):
     """Necking at the last output: 1 − (current width at the specimen's
     current mid-length) / W. The free edges are the nodes at reference x = 0
     and x = W; each edge's current x is interpolated at the current
-    y = (L + d)/2 (d the clamp displacement)."""
-    s = oat_summary(folder)
+    mid-length, half way between the lowest and highest node (y = (L + d)/2,
+    d the clamp displacement)."""
     c = read_cells(oat_last_vtu(folder))
     ref, pts = c["ref"], c["points"]
     w = ref[:, 0].max() - ref[:, 0].min()
@@ -406,7 +405,6 @@ def oat_necking(folder):
         on = np.abs(ref[:, 0] - edge) < 1e-6 * max(w, 1.0)
         order = np.argsort(pts[on, 1])
         xs.append(float(np.interp(ymid, pts[on, 1][order], pts[on, 0][order])))
-    del s
     return 1.0 - (xs[1] - xs[0]) / w
 
 
@@ -626,10 +624,6 @@ def draw_in(folder):
     f = forming_summary(folder)["forming"]
     names = [p[0] for p in f["draw_in_points"][0]]
     return dict(zip(names, f["states"][-1]["draw_in"][0]))
-
-
-def margin_text(value, limit):
-    return f"{value:.3g} against {limit:.3g}"
 
 
 if __name__ == "__main__":
