@@ -23,8 +23,9 @@ and copies of them:
   perturbation for each term;
 * `printed30`: the 30° test with `params = "schaefer2024-printed"` (Table
   D.1 as printed: its W11 lock cannot act, docs/w11-lock.md);
-* `nocoupling30`: the 30° test without the coupling (k_min = 1, so
-  k11 = 1).
+* `nocoupling30`: the fine-stepped 30° test without the coupling
+  (k_min = 1, so k11 = 1; fine-stepped like base30, so that the two force
+  curves are read alike).
 
 Each check compares ncform's numbers with each other as the paper's
 sentence states them; no ncform result is written into this file. The
@@ -33,8 +34,12 @@ compared), or a threshold the paper or docs/w11-lock.md states. What
 makes each fail is in its docstring. Findings about the experiments
 (O5, O7) cannot be checked without the measured curves.
 
-Usage: verify_findings.py --ncform PATH [--keep DIR]
-(with --keep the runs are kept in DIR, and runs already there are reused)
+Usage: verify_findings.py --ncform PATH [--keep DIR] [--params NAME|FILE]
+(with --keep the runs are kept in DIR, and runs already there are reused;
+--params runs every case and copy with another law, to see the checks
+fail: with `schaefer2024-printed` O6 fails, the 30° test's smallest I11
+being 0.267; with the default set and k_min = 1 O8 fails, the coupling no
+longer lowering the slope past the knee)
 Prints PASS/FAIL lines and one "CHECK-SUMMARY passed=N failed=M" line.
 """
 
@@ -68,11 +73,12 @@ MATERIAL = os.path.join(REPO, "cases", "materials", "schaefer2024.toml")
 # Case and material copies
 # ---------------------------------------------------------------------------
 
-def material_copy(path, scale_term=None, k_min=None):
-    """The default parameter file with one term's moduli and stresses times
-    HALVED, or the coupling's k_min replaced; written to `path`."""
+def material_copy(path, scale_term=None, k_min=None, source=MATERIAL):
+    """The parameter file `source` (the default set's unless --params names
+    another) with one term's moduli and stresses times HALVED, or the
+    coupling's k_min replaced; written to `path`."""
     out, section = [], None
-    for line in open(MATERIAL):
+    for line in open(source):
         s = line.strip()
         if s.startswith("["):
             section = s.strip("[]")
@@ -103,21 +109,27 @@ def case_copy(angle, path, element_size=None, params=None, fine=False):
     return path
 
 
-def plan(work):
-    """{run name: case file} of every run the checks need."""
+def plan(work, source=MATERIAL):
+    """{run name: case file} of every run the checks need; `source`: the
+    parameter file of the law under test (the shipped cases' default set
+    unless --params names another)."""
     runs = {}
+    law = None if source == MATERIAL else os.path.abspath(source)
     for a in ANGLES:
         fine = a == 30
-        runs[f"base{a}"] = case_copy(a, os.path.join(work, f"base{a}.toml"), fine=fine)
-        runs[f"coarse{a}"] = case_copy(a, os.path.join(work, f"coarse{a}.toml"),
+        runs[f"base{a}"] = case_copy(a, os.path.join(work, f"base{a}.toml"), params=law,
+                                     fine=fine)
+        runs[f"coarse{a}"] = case_copy(a, os.path.join(work, f"coarse{a}.toml"), params=law,
                                        element_size=COARSE_ELEMENT_SIZE, fine=fine)
         for term in ("w6", "w8", "w11"):
-            mat = material_copy(os.path.join(work, f"mat-{term}.toml"), scale_term=term)
+            mat = material_copy(os.path.join(work, f"mat-{term}.toml"), scale_term=term,
+                                source=source)
             runs[f"{term}{a}"] = case_copy(a, os.path.join(work, f"{term}{a}.toml"), params=mat)
     runs["printed30"] = case_copy(30, os.path.join(work, "printed30.toml"),
                                   params="schaefer2024-printed")
-    mat = material_copy(os.path.join(work, "mat-nocoupling.toml"), k_min=1.0)
-    runs["nocoupling30"] = case_copy(30, os.path.join(work, "nocoupling30.toml"), params=mat)
+    mat = material_copy(os.path.join(work, "mat-nocoupling.toml"), k_min=1.0, source=source)
+    runs["nocoupling30"] = case_copy(30, os.path.join(work, "nocoupling30.toml"), params=mat,
+                                     fine=True)
     return runs
 
 
@@ -383,7 +395,14 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--ncform", required=True)
     ap.add_argument("--keep")
+    ap.add_argument("--params", help="run every case with this law instead of the shipped "
+                    "default: a named set (cases/materials/NAME.toml) or a parameter file; "
+                    "to see the checks fail on another law")
     args = ap.parse_args()
+    source = MATERIAL
+    if args.params:
+        named = os.path.join(REPO, "cases", "materials", f"{args.params}.toml")
+        source = named if os.path.exists(named) else args.params
     h = Harness()
     if not args.ncform or not os.path.exists(args.ncform):
         h.run("findings/ncform", "the ncform binary exists", lambda: (False, "no binary"))
@@ -392,7 +411,7 @@ def main():
     work = args.keep or tempfile.mkdtemp(prefix="ncform-findings-")
     os.makedirs(work, exist_ok=True)
     t0 = time.time()
-    outs, errors = run_all(args.ncform, plan(work), work, reuse=bool(args.keep))
+    outs, errors = run_all(args.ncform, plan(work, source), work, reuse=bool(args.keep))
     h.run("findings/runs", "every OAT run and copy completes",
           lambda: (not errors, f"{len(outs)} runs in {time.time() - t0:.1f} s"
                    + "".join(f"\n{n}: {e}" for n, e in errors.items())))
