@@ -146,7 +146,7 @@ FINDINGS = [
        "are printed for the comparison",
        "oat_force_final, oat_mdz_final", "experiment"),
     _f("O8", "4, Fig. 6a",
-       "During the 30°-OAT, the slope of the forces in the simulation is too high at a "
+       "During the 30°-OAT (cf. Fig. 6 a), the slope of the forces in the simulation is too high at a "
        "displacement of 25 mm and flattens out again from 30 mm because at this point the "
        "coupling strongly reduces W8.",
        "force slope dF/dd at 20/25/30/35 mm; the displacement of the steepest slope past "
@@ -228,7 +228,7 @@ FINDINGS = [
        "rovings (12-shear) … This distinction of the asymmetrical shear behavior cannot be "
        "achieved with the proposed macroscopic approach based on Cauchy mechanics.",
        "— (a property of the law: W6 depends on |I6|, the same for 12- and 21-shear)",
-       "—", "experiment"),
+       "—", "reported"),
     _f("H9", "5.2, Fig. 9",
        "The negative transverse and perpendicular strains are well predicted within the "
        "areas of high shear deformation but overestimated in the outer areas.",
@@ -267,7 +267,7 @@ FINDINGS = [
        "area-weighted E22 and E⊥ within 25 mm of the blank's centre at 95 mm, each layup",
        "centre_strains(DIR/tetrahedron-*)", "asserted"),
     _f("T4", "5.3 (and 6)",
-       "Both of these effects are more pronounced for the tetrahedron test compared to the "
+       "Both effects are more pronounced for the tetrahedron test compared to the "
        "hemisphere test, due to the stronger distortion in the DIC results and the higher "
        "blankholder weight.",
        "ncform's side: the centre E22 of each tetrahedron layup against the single-ply "
@@ -292,7 +292,7 @@ FINDINGS = [
        "seen in ncform's maps (maps/ply_0005.png); no band detector yet",
        "—", "reported"),
     _f("T8", "5.3, Fig. 2d",
-       "While mixed-mode 1 (I8, I11 < 1) was the main deformation mode in the "
+       "While mixed-mode 1 (I8, I11 < 1, cf. Fig. 2 d) was the main deformation mode in the "
        "hemisphere-test, mixed-mode 2 (I11 < 1, I8 > 1) additionally occurs during "
        "tetrahedron forming near zone C in the [0°]-, zone B in the [90°]- and between "
        "zones B & C in the [45°]-setup.",
@@ -307,6 +307,28 @@ FINDINGS = [
 ]
 
 BY_ID = {f["id"]: f for f in FINDINGS}
+
+# Where each asserted finding is checked (the check's name as printed).
+CHECKS = {
+    "O1": "verify_findings.py findings/O1",
+    "O2": "verify_findings.py findings/O2",
+    "O3": "verify_findings.py findings/O3-O4",
+    "O4": "verify_findings.py findings/O3-O4 (45° and 30°; the 60° part printed)",
+    "O6": "verify_findings.py findings/O6",
+    "O8": "verify_findings.py findings/O8 (shape and coupling; the position printed)",
+    "O9": "verify_findings.py findings/O9",
+    "O10": "verify_findings.py findings/O10",
+    "O11": "verify_findings.py findings/O11",
+    "O12": "verify_findings.py findings/O12",
+    "H1": "full_validation.py H1 <case>",
+    "H3": "full_validation.py H3 ply 1, H3 ply 2",
+    "H11": "full_validation.py pole strains <case>",
+    "T3": "full_validation.py centre strains <case>",
+    "T4": "full_validation.py T4 <case>",
+    "T8": "full_validation.py T8 hemisphere <case> <ply>, T8 tetrahedron <case>",
+}
+assert all(BY_ID[k]["kind"] == "asserted" for k in CHECKS)
+assert all(k in CHECKS for k, f in BY_ID.items() if f["kind"] == "asserted")
 
 
 # ---------------------------------------------------------------------------
@@ -628,4 +650,5 @@ def draw_in(folder):
 
 if __name__ == "__main__":
     for f in FINDINGS:
-        print(f"{f['id']:4s} [{f['kind']}] §{f['section']}: {f['quote'][:90]}…")
+        where = CHECKS.get(f["id"], "")
+        print(f"{f['id']:4s} [{f['kind']}] §{f['section']}: {f['quote'][:80]}… {where}")
