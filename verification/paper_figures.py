@@ -10,10 +10,14 @@ DIR holds one run folder per case, DIR/<case>/, as
 `full_validation.py --keep DIR` leaves them (and `ncform run
 cases/<case>.toml --out DIR/<case>` for the OATs): hemisphere-0,
 hemisphere-45, hemisphere-0-90, tetrahedron-0, tetrahedron-45,
-tetrahedron-90, oat30, oat45, oat60 (oat45-explicit is drawn too when
-present). A figure whose runs are all absent is skipped with a note; a run
-folder that lacks a file a figure needs stops the script with a message
-naming the file.
+tetrahedron-90, oat30, oat45, oat60 (oat45-explicit is drawn too in the
+OAT curves when present). A figure whose runs are all absent is skipped
+with a note; a run folder that lacks a file a figure needs stops the
+script with a message naming the file.
+
+The die's opening is computed from the case files in cases/ (the run folder
+does not record the tools' dimensions), so a run of an edited case is drawn
+with the shipped case's opening.
 
 `--windows JSON`: extra evaluation windows drawn on the strain maps, a
 list of {"name": "D", "centre": [x, y], "size": [w, h]} in reference
@@ -204,11 +208,11 @@ def rounded_polygon(sides, inner, radius, first_corner_deg, n=60):
 
 
 def die_outlines(run):
-    return _die_outlines(run.case, run.case_file)
+    return _die_outlines(run.case_file)
 
 
 @functools.lru_cache(maxsize=None)
-def _die_outlines(case_name, case_file):
+def _die_outlines(case_file):
     """[(label, xy)]: the die's opening and the outer edge of its fillet
     in the die plane, from the case file's `die` tool (docs/cases.md,
     `[[tool]]`; the pyramid's opening as docs/forming.md, "Geometry and
@@ -242,7 +246,7 @@ def _die_outlines(case_name, case_file):
         # the base edge along e on the side of -(axis x e): its corner opposite
         edge_normal = -np.cross([0, 0, 1], e)[:2]
         first = np.degrees(np.arctan2(-edge_normal[1], -edge_normal[0]))
-        print(f"# {case_name}: die opening: sides {side:.2f} mm from the axis, corners "
+        print(f"# {os.path.basename(case_file)}: die opening: sides {side:.2f} mm from the axis, corners "
               f"R {rc:.2f} mm, corner extremes {extreme:.2f} mm; fillet {f:g} mm", flush=True)
         return [(f"die opening (sides {side:.1f} mm from the axis, corners R {rc:.1f} mm)",
                  rounded_polygon(n, d, rc, first)),
@@ -441,7 +445,9 @@ def fig6(runs, out):
         _, fd = read_csv(os.path.join(runs, c, "force_displacement.csv"))
         h, md = read_csv(os.path.join(runs, c, "mdz_strains.csv"))
         x0 = np.concatenate([[0.0], fd[:, 0]])
-        axes[0, 0].plot(x0, np.concatenate([[0.0], fd[:, 1]]), color=colours[c], ls=ls, lw=lw, label=f"{a.split(' ')[0]}-OAT{a[3:]}")
+        name = f"{a.split(' ')[0]}-OAT{a[3:]}"
+        axes[0, 0].plot(x0, np.concatenate([[0.0], fd[:, 1]]), color=colours[c], ls=ls, lw=lw,
+                        label=name)
         cols = {n.split(" [")[0]: k for k, n in enumerate(h)}
         for ax, key, lab in ((axes[0, 1], "shear_angle", "MDZ mean shear angle γ [deg]"),
                              (axes[1, 0], "E22", "MDZ mean E22 = I8 − 1 [-]"),
@@ -450,7 +456,7 @@ def fig6(runs, out):
                 raise Missing(f"paper_figures.py: {os.path.join(runs, c, 'mdz_strains.csv')} has no "
                               f"column {key}")
             ax.plot(np.concatenate([[0.0], md[:, 0]]), np.concatenate([[0.0], md[:, cols[key]]]),
-                    color=colours[c], ls=ls, lw=lw, label=f"{a.split(' ')[0]}-OAT{a[3:]}")
+                    color=colours[c], ls=ls, lw=lw, label=name)
             ax.set_ylabel(lab)
     axes[0, 0].set_ylabel("clamp force [N]")
     for ax in axes.flat:
@@ -754,7 +760,8 @@ def fig_modes(got_h, got_t, out, extra):
         share = ""
         if modes:
             a = np.array(modes[0]["areas"])
-            share = f"\nmixed-mode 1 {100 * a[1] / a.sum():.0f} %, mixed-mode 2 {100 * a[2] / a.sum():.0f} % of the ply"
+            share = (f"\nmixed-mode 1 {100 * a[1] / a.sum():.0f} %, "
+                     f"mixed-mode 2 {100 * a[2] / a.sum():.0f} % of the ply")
         ax.set_title(f"{bench} {lab}, {run.strokes[-1]:.0f} mm{share}", fontsize=8.5)
         ax.set_xlabel("x [mm] (from below)", fontsize=7)
         ax.set_ylabel("y [mm]", fontsize=7)
@@ -832,8 +839,8 @@ def fig_stack(got_h, out, extra):
         ax.set_title(f"{d:.0f} mm\nzone means: {means}", fontsize=8.5)
         ax.set_xlabel("x [mm] (from below)", fontsize=7.5)
         ax.set_ylabel("y [mm]", fontsize=7.5)
-    colourbar(fig, pc, axes[0, :], range_label("γ(0° ply of [0°/90°]) − γ(single [0°] ply) [deg]", lo, hi,
-                                               pct=5.0),
+    label = "γ(0° ply of [0°/90°]) − γ(single [0°] ply) [deg]"
+    colourbar(fig, pc, axes[0, :], range_label(label, lo, hi, pct=5.0),
               location="bottom", shrink=0.6, pad=0.02, aspect=40)
     fig.suptitle("Hemisphere: shear redistribution by the 90° ply (paper Fig. 10a, Section 5.2), element "
                  "by element on the stack's 0° ply's current positions, seen from below;\nred: the stack "
@@ -842,8 +849,7 @@ def fig_stack(got_h, out, extra):
     save(fig, out, "hemisphere-stack-minus-single.png")
     print("# stack − single, area-weighted mean of γ difference in each window [deg]:")
     for d, n, m, k in rows:
-        print(f"#   {d:.0f} mm zone {n}: {m:+.2f}° ({k} elements)")
-    return [how] + [f"{d:.0f} mm zone {n}: {m:+.2f}° ({k} elements)" for d, n, m, k in rows]
+        print(f"#   {d:.0f} mm window {n}: {m:+.2f}° ({k} elements)")
 
 
 def main():
