@@ -194,6 +194,13 @@ def apply_set(case, assignment, case_path):
         targets = nxt
         i += 1
     last = keys[-1]
+    if len(keys) >= 2:
+        parent = case
+        for k in keys[:-2]:
+            parent = parent.get(k, {}) if isinstance(parent, dict) else {}
+        arr = parent.get(keys[-2]) if isinstance(parent, dict) else None
+        if _is_table_array(arr) and last in [x.get("name") for x in arr]:
+            raise StudyError(f"{where}: `{path}` is a table ([[{keys[-2]}]] \"{last}\"), not a key")
     for t in targets:
         if isinstance(t.get(last), dict) or _is_table_array(t.get(last)):
             raise StudyError(f"{where}: `{path}` is a table, not a key")
@@ -452,6 +459,8 @@ def main(argv=None):
             raise StudyError(f"--use {u}: expected CELLS=RUN_DIR")
         if summary_of(d) is None:
             raise StudyError(f"--use {u}: {d}/summary.json missing or unreadable")
+    if used and (args.set or args.nudged or args.friction_scale or args.mass_length_scale):
+        print("# note: --use folders are tabulated as they are: --set does not apply to them", flush=True)
     cells = sorted(set(args.cells) | set(used))
     for s in args.set:            # refuse bad paths before any run
         apply_set(copy.deepcopy(base), s, case_path)
@@ -476,6 +485,8 @@ def main(argv=None):
         out, s = run(args.ncform, work, f"{args.bench}-c{c}", case, args.only_table)
         if out:
             runs[f"{c}"] = (c, out, s, case)
+    if not runs:
+        raise StudyError(f"{work}: no run folder to tabulate (--only-table runs nothing)")
     middle = cells[len(cells) // 2]
     variants = []
     for k in args.nudged:
