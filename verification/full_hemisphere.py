@@ -25,7 +25,12 @@ more on two cores): run by `bash verification/run.sh --full`, not in CI.
   draw-in at the +x and +y edge midpoints and zone shear, with the observed
   order p = log2(|f42 - f84| / |f84 - f168|); checked only for monotone
   convergence of the force (|f84 - f168| < |f42 - f84|). The mean corner
-  draw-in at 45 mm is printed too. With --penalty-per-area K every mesh
+  draw-in at 45 mm is printed too. The three runs are then tabulated by
+  verification/mesh_study.py (DIR/mesh-study/study.md and study.json: the
+  force over the last 10 mm with its oscillation, every draw-in, the case
+  zones and the flange windows in 3D and 2D-DIC, the non-uniform
+  Richardson order and GCI); a study on other meshes, with overrides or
+  with a spread over nudged step sequences: mesh_study.py itself. With --penalty-per-area K every mesh
   takes `[contact] explicit_pressure_stiffness = K` [N/mm³] (the same
   contact stiffness per unit area on every mesh, docs/contact.md) instead
   of the shipped fraction of the stability limit, whose stiffness per
@@ -222,7 +227,7 @@ def cross_check(args, work, coarse):
 
 def mesh_study(args, work):
     if args.mesh_study:
-        figures = {}
+        figures, outs = {}, {}
         for cells in (42, 84, 168):
             tag = {42: "explicit-0-42", 84: "explicit-0"}.get(cells, f"explicit-0-{cells}")
             edits = []
@@ -239,6 +244,7 @@ def mesh_study(args, work):
                               [("cells = [84, 84]", f"cells = [{cells}, {cells}]"),
                                (f"roving_mass_length = {SHIPPED_ROVING_MASS_LENGTH}",
                                 f"roving_mass_length = {length}")] + edits)
+            outs[cells] = out
             last = s["forming"]["states"][-1]
             corners_45 = float(np.mean(s["forming"]["states"][2]["draw_in"][0][4:8]))
             figures[cells] = [last["tools"][2]["force"], last["draw_in"][0][0],
@@ -256,6 +262,19 @@ def mesh_study(args, work):
         f42, f84, f168 = (figures[n][0] for n in (42, 84, 168))
         check("mesh", abs(f84 - f168) < abs(f42 - f84),
               "42/84/168 cells: " + "; ".join(parts))
+        # The full table (late-stroke force and its oscillation, every
+        # draw-in, case zones and flange windows in 3D and 2D-DIC, the
+        # non-uniform Richardson order and GCI) from the same three runs:
+        # verification/mesh_study.py, reading them, running nothing.
+        import mesh_study
+        table_dir = os.path.join(work, "mesh-study" if args.penalty_per_area is None
+                                 else f"mesh-study-kp{args.penalty_per_area:g}")
+        try:
+            mesh_study.main(["--keep", table_dir, "--bench", "hemisphere-0", "--cells", "42", "84", "168",
+                             "--only-table"] + [x for c, o in outs.items() for x in ("--use", f"{c}={o}")])
+            print(f"# mesh study table: {table_dir}/study.md", flush=True)
+        except (mesh_study.StudyError, mesh_study.dic_zones.InputError) as e:
+            print(f"# mesh study table not written: {e}", flush=True)
 
 
 if __name__ == "__main__":
