@@ -775,7 +775,7 @@ fn docs_state_every_bound() {
 fn shipped_cases_parse_without_warnings() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut count = 0;
-    for folder in ["cases", "cases/verification"] {
+    for folder in ["cases", "cases/verification", "cases/regularised"] {
         for entry in fs::read_dir(root.join(folder)).unwrap() {
             let path = entry.unwrap().path();
             let text = fs::read_to_string(&path).unwrap_or_default();

@@ -85,6 +85,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+import bands
 import dic_zones  # noqa: E402
 
 BENCHES = ("hemisphere-0", "hemisphere-0-90", "tetrahedron-0")
@@ -337,6 +338,14 @@ def figures(out, summary, case, case_path, windows):
         for pi, points in enumerate(fo.get("draw_in_points", [])):
             for (name, _), v in zip(points, states[-1]["draw_in"][pi]):
                 f[f"draw-in {plies[pi] if pi < len(plies) else pi} {name} [mm]"] = float(v)
+    # The fine-scale measures (verification/bands.py) of the camera ply
+    # at full depth: the shear bands and the flange's heights.
+    last = len(states)
+    camera = dic_zones.camera_ply(case, case_path).get("name", "ply") if states else None
+    vtu = os.path.join(out, "vtu", f"{camera}_{last:04d}.vtu") if camera else None
+    if vtu and os.path.exists(vtu):
+        f["shear-band index at full depth [deg]"] = bands.band_index(vtu)
+        f["flange heights RMS at full depth [mm]"] = bands.flange_waves(vtu)[0]
     zones = {}
     try:
         ps = dic_zones.PlyStates(out, case, path=case_path)
@@ -440,25 +449,33 @@ def main(argv=None):
                     help="pick the flange windows on this study's run (the case's cells, else the finest) "
                          "instead of verification/flange_windows_<single-ply bench>.json")
     ap.add_argument("--use", action="append", default=[], metavar="CELLS=RUN_DIR",
-                    help="an existing run folder (read only) as the run of that mesh")
+                    help="an existing run folder (read only) as the run of that mesh; "
+                         "LABEL=RUN_DIR (LABEL not a number): a spread run of the middle mesh")
+    ap.add_argument("--case", help="the case file the bench's runs are copies of "
+                    "(default cases/<bench>.toml; e.g. cases/regularised/<bench>.toml)")
     ap.add_argument("--only-table", action="store_true", help="run nothing; tabulate the folders present")
     args = ap.parse_args(argv)
 
-    case_path = os.path.join(REPO, "cases", f"{args.bench}.toml")
+    case_path = args.case or os.path.join(REPO, "cases", f"{args.bench}.toml")
+    if not os.path.exists(case_path):
+        raise StudyError(f"--case {case_path}: no such file")
     base = dic_zones.load_case(case_path)
     if not args.only_table and not args.use and shutil.which(args.ncform) is None and not os.path.exists(args.ncform):
         raise StudyError(f"--ncform {args.ncform}: not found")
     work = args.keep
     os.makedirs(work, exist_ok=True)
     used = {}
+    used_spread = {}
     for u in args.use:
-        try:
-            c, d = u.split("=", 1)
-            used[int(c)] = d
-        except ValueError:
-            raise StudyError(f"--use {u}: expected CELLS=RUN_DIR")
+        if "=" not in u:
+            raise StudyError(f"--use {u}: expected CELLS=RUN_DIR or LABEL=RUN_DIR")
+        c, d = u.split("=", 1)
         if summary_of(d) is None:
             raise StudyError(f"--use {u}: {d}/summary.json missing or unreadable")
+        try:
+            used[int(c)] = d
+        except ValueError:
+            used_spread[c] = d
     if used and (args.set or args.nudged or args.friction_scale or args.mass_length_scale):
         print("# note: --use folders are tabulated as they are: --set does not apply to them", flush=True)
     cells = sorted(set(args.cells) | set(used))
@@ -496,6 +513,10 @@ def main(argv=None):
     for ms in args.mass_length_scale:
         variants.append((f"ℓ ×{ms:g}", dict(mass_length_scale=ms), f"l{ms:g}"))
     spread_labels = []
+    for label, d in used_spread.items():
+        runs[label] = (middle, d, summary_of(d), make_case(base, case_path, middle, args.set))
+        spread_labels.append(label)
+        print(f"# {label}: {d} (--use, read only)", flush=True)
     for label, kw, tag in variants:
         case = make_case(base, case_path, middle, args.set, **kw)
         out, s = run(args.ncform, work, f"{args.bench}-c{middle}-{tag}", case, args.only_table)
@@ -571,12 +592,53 @@ def main(argv=None):
     md = markdown(result, mesh_labels, spread_labels, names)
     with open(os.path.join(work, "study.md"), "w") as f:
         f.write(md)
+    with open(os.path.join(work, "summary.md"), "w") as f:
+        f.write(compact(result, mesh_labels, spread_labels, names))
     print(md)
     return result
 
 
+# The rows of the short table (DIR/summary.md): the quantities the targets
+# name and the fine-scale measures, at full depth; zones at 60 mm too,
+# where the case zones still have visible elements.
+COMPACT = ("force, mean over the last 10 mm", "force oscillation RMS", "external work",
+           "blankholder lift, largest", "draw-in", "shear-band index", "flange heights RMS")
+
+
+def compact(r, mesh_labels, spread_labels, names):
+    """The short table of a study: the COMPACT rows and every zone's 3D mean
+    at 60 mm and at full depth and 2D-DIC mean at 60 mm, per mesh, with
+    the observed order, the coarse–fine difference against its target and
+    the spread of the middle mesh's variant runs."""
+    depth = max((r["figures"][l].get("depth [mm]") or 0.0) for l in mesh_labels)
+    full = f"{depth:.0f} mm"
+    picked = [n for n in names if n.startswith(COMPACT)]
+    picked += [n for n in names if n.startswith("zone") and (
+        n.endswith(f"3D at {full} [deg]") or n.endswith("3D at 60 mm [deg]")
+        or n.endswith("2D-DIC at 60 mm [deg]"))]
+    head = ["quantity"] + [f"{l} cells" for l in mesh_labels] + ["p", "coarse–fine", "target"]
+    if spread_labels:
+        head.append(f"spread at {r['middle']} cells ({', '.join(spread_labels)})")
+    L = [f"Short table of the mesh study of `{r['case']}` (all rows: `study.md`).", "",
+         "| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for n in picked:
+        a = r["analysis"].get(n, {})
+        row = [n] + [fmt(r["figures"][l].get(n)) for l in mesh_labels]
+        row.append(fmt(a.get("p"), 2) if a.get("p") is not None else "—")
+        if "coarse_fine_difference" in a:
+            diff = a["coarse_fine_difference"]
+            shown = f"{100 * diff:.1f} %" if n.startswith("force, mean") else fmt(diff, 2)
+            row += [shown, "met" if a["target_met"] else "**not met**"]
+        else:
+            row += ["—", "—"]
+        if spread_labels:
+            row.append(f"{fmt(a['spread_min'])} … {fmt(a['spread_max'])}" if "spread_min" in a else "—")
+        L.append("| " + " | ".join(row) + " |")
+    return "\n".join(L) + "\n"
+
+
 def markdown(r, mesh_labels, spread_labels, names):
-    L = [f"# Mesh study: cases/{r['bench']}.toml", ""]
+    L = [f"# Mesh study: {r['case']}", ""]
     L.append(f"Cells {', '.join(str(c) for c in r['cells'])}; `--set` {', '.join(r['set']) or 'none'}; "
              f"spread runs at {r['middle']} cells: {', '.join(spread_labels) or 'none'}. Units mm, N, N·mm, s, "
              "degrees. Force: forming.csv's punch force averaged over the history rows of the last 10 mm of "
