@@ -114,15 +114,8 @@ def run_case(ncform, name, work):
     return out, summary
 
 
-def contours(out):
-    """{ply number: (reference xy, [xy at each output state])}."""
-    _, data = read_csv(os.path.join(out, "outer_contour.csv"))
-    plies = {}
-    for p in np.unique(data[:, 0]):
-        d = data[data[:, 0] == p]
-        states = [d[:, 4 + 2 * k:6 + 2 * k] for k in range((d.shape[1] - 4) // 2)]
-        plies[int(p)] = (d[:, 2:4], states)
-    return plies
+# {ply number: (reference xy, [xy at each output state])} of a run folder.
+contours = findings.contours
 
 
 def centre_strains(vtu):
@@ -140,14 +133,8 @@ def centre_strains(vtu):
     return mean("E22"), mean("E_perp"), int(inside.sum())
 
 
-def last_ply_vtus(out):
-    """{ply name: its last output state's VTU}."""
-    names = sorted(x for x in os.listdir(os.path.join(out, "vtu"))
-                   if x.endswith(".vtu") and not x.startswith("tool-") and "-dic_" not in x)
-    last = {}
-    for n in names:
-        last[n.rsplit("_", 1)[0]] = os.path.join(out, "vtu", n)
-    return last
+# {ply name: its last output state's VTU} of a run folder.
+last_ply_vtus = findings.ply_vtus
 
 
 def report(name, out, s):

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Mesh study and run-to-run spread of a forming bench (docs/forming.md,
-"Mesh study, κ held"; method: docs/mesh-study-method.md).
+"Mesh study, κ held"; method and results: docs/validation.md, "Mesh studies").
 
 Writes copies of a shipped case (cases/<bench>.toml) with every ply's
 `cells` changed, `[explicit] roving_mass_length` scaled with the cell size

@@ -56,6 +56,8 @@ import meshio  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
+import findings  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 CASES = os.path.join(REPO, "cases")
@@ -479,13 +481,7 @@ def fig6(runs, out):
 
 def contours(run):
     """{ply number: (reference xy, [xy at each output state])}."""
-    _, data = read_csv(os.path.join(run.dir, "outer_contour.csv"))
-    plies = {}
-    for p in np.unique(data[:, 0]):
-        d = data[data[:, 0] == p]
-        states = [d[:, 4 + 2 * k:6 + 2 * k] for k in range((d.shape[1] - 4) // 2)]
-        plies[int(p)] = (d[:, 2:4], states)
-    return plies
+    return findings.contours(run.dir)
 
 
 def closed(xy):
