@@ -454,6 +454,8 @@ def main(argv=None):
     ap.add_argument("--case", help="the case file the bench's runs are copies of "
                     "(default cases/<bench>.toml; e.g. cases/regularised/<bench>.toml)")
     ap.add_argument("--only-table", action="store_true", help="run nothing; tabulate the folders present")
+    ap.add_argument("--plot", help="also draw the punch force and the corner draw-in of every run "
+                    "against the stroke into this PNG (needs matplotlib)")
     args = ap.parse_args(argv)
 
     case_path = args.case or os.path.join(REPO, "cases", f"{args.bench}.toml")
@@ -594,8 +596,48 @@ def main(argv=None):
         f.write(md)
     with open(os.path.join(work, "summary.md"), "w") as f:
         f.write(compact(result, mesh_labels, spread_labels, names))
+    if args.plot:
+        plot(args.plot, runs, mesh_labels, spread_labels, result["case"])
     print(md)
     return result
+
+
+def plot(path, runs, mesh_labels, spread_labels, case_name):
+    """The punch force and the mean corner draw-in against the stroke, one
+    line per mesh (darker: finer) and dashed per spread run: how the late
+    stroke parts with the mesh, beside the spread of one mesh."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (ax_f, ax_d) = plt.subplots(1, 2, figsize=(11, 4.2))
+    shades = plt.cm.viridis(np.linspace(0.8, 0.1, max(len(mesh_labels), 1)))
+    styles = [(l, dict(color=c, lw=1.4)) for l, c in zip(mesh_labels, shades)]
+    styles += [(l, dict(color="0.45", lw=1.0, ls="--")) for l in spread_labels]
+    for label, style in styles:
+        cells, out, summary, _ = runs[label]
+        fm = read_forming(out)
+        d, force = fm["punch displacement [mm]"], fm["punch force [N]"]
+        name = f"{cells} cells" if label in mesh_labels else f"{cells} cells, {label}"
+        ax_f.plot(d, force, label=name, **style)
+        fo = summary.get("forming", {})
+        states = fo.get("states", [])
+        points = fo.get("draw_in_points", [[]])[0]
+        corners = [k for k, (n, _) in enumerate(points) if "corner" in n]
+        if states and corners:
+            ax_d.plot([s["stroke"] for s in states],
+                      [np.mean([s["draw_in"][0][k] for k in corners]) for s in states],
+                      marker="o", ms=3, label=name, **style)
+    ax_f.set_xlabel("punch displacement [mm]")
+    ax_f.set_ylabel("punch force [N]")
+    ax_d.set_xlabel("punch displacement [mm]")
+    ax_d.set_ylabel("mean corner draw-in, first ply [mm]")
+    for ax in (ax_f, ax_d):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"mesh study of {case_name}: the late stroke against the mesh and the spread runs")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 # The rows of the short table (DIR/summary.md): the quantities the targets
