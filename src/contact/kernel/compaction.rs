@@ -75,13 +75,6 @@ impl CompactionLaw {
     pub fn thickness_ratio(&self, pressure: f64) -> f64 {
         (1.0 + pressure.max(0.0) / self.pressure_scale).powf(-1.0 / self.exponent)
     }
-
-    /// The tangent `dp/dδ` \[MPa/mm\] of a layer of thickness `layer` at
-    /// the pressure `pressure` (Eq. C2 per unit area): `n (p + p_c)/(H − δ)`.
-    pub fn stiffness_at_pressure(&self, layer: f64, pressure: f64) -> f64 {
-        let remaining = layer * self.thickness_ratio(pressure);
-        self.exponent * (pressure.max(0.0) + self.pressure_scale) / remaining
-    }
 }
 
 /// `(1/(1 − s))^m − 1` for `0 ≤ s < 1` without cancellation at small `s`.
@@ -141,25 +134,22 @@ impl NodalCompaction {
         };
         if ratio > 1.0 {
             nodal.knee = layer * -(-ratio.ln() / (n + 1.0)).exp_m1();
-            nodal.knee_force = nodal.law_force(nodal.knee);
-            nodal.knee_energy = nodal.law_energy(nodal.knee);
+            (nodal.knee_force, nodal.knee_energy) = nodal.law(nodal.knee);
         }
         Ok(nodal)
     }
 
-    /// `A p(δ)` on the law's branch (Eq. C1).
+    /// `A p(δ)` (Eq. C1) and `∫₀^δ A p = A p_c (H/(n − 1) ((H/(H − δ))^(n−1)
+    /// − 1) − δ)` (Eq. C4) on the law's branch, from one logarithm
+    /// `ln(H/(H − δ))`.
     #[inline]
-    fn law_force(&self, compression: f64) -> f64 {
-        self.force_scale * power_minus_one(self.exponent, compression / self.layer)
-    }
-
-    /// `∫₀^δ A p` on the law's branch (Eq. C4):
-    /// `A p_c (H/(n − 1) ((H/(H − δ))^(n−1) − 1) − δ)`.
-    #[inline]
-    fn law_energy(&self, compression: f64) -> f64 {
+    fn law(&self, compression: f64) -> (f64, f64) {
         let n = self.exponent;
-        let s = compression / self.layer;
-        self.force_scale * (self.layer / (n - 1.0) * power_minus_one(n - 1.0, s) - compression)
+        let log_ratio = -(-compression / self.layer).ln_1p();
+        let force = self.force_scale * (n * log_ratio).exp_m1();
+        let energy = self.force_scale
+            * (self.layer / (n - 1.0) * ((n - 1.0) * log_ratio).exp_m1() - compression);
+        (force, energy)
     }
 
     /// The normal force \[N\] and the stored energy [N·mm] at the
@@ -171,7 +161,7 @@ impl NodalCompaction {
         if compression <= 0.0 {
             (0.0, 0.0)
         } else if compression <= self.knee {
-            (self.law_force(compression), self.law_energy(compression))
+            self.law(compression)
         } else {
             let beyond = compression - self.knee;
             (
@@ -188,7 +178,7 @@ impl NodalCompaction {
             0.0
         } else if compression <= self.knee {
             let remaining = self.layer - compression;
-            self.exponent * (self.law_force(compression) + self.force_scale) / remaining
+            self.exponent * (self.law(compression).0 + self.force_scale) / remaining
         } else {
             self.stiffness
         }
