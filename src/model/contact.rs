@@ -971,23 +971,14 @@ impl KernelChunk<'_> {
                 Avx2Kernel { simd, chunk: self },
             );
         }
-        self.batches(penalty_lanes_one_by_one)
+        self.batches(OneByOne)
     }
 
     /// `kernel` on every batch with a pair that is not culled and released
     /// (the others only move their previous position on; the skipped ones
     /// are left as they are), then each node's force and outputs.
     #[inline(always)]
-    fn batches(
-        self,
-        mut kernel: impl FnMut(
-            &mut PenaltyBatch<PAIR_LANES>,
-            &PenaltyInput<PAIR_LANES>,
-            &mut PenaltyOutput<PAIR_LANES>,
-            f64,
-            Option<&[NodalCompaction; PAIR_LANES]>,
-        ) -> u32,
-    ) -> (Option<usize>, f64, u64) {
+    fn batches(self, mut kernel: impl PairKernel) -> (Option<usize>, f64, u64) {
         let mut first_failure = None;
         let mut sum = 0.0;
         let mut settled = 0_u64;
@@ -1014,7 +1005,8 @@ impl KernelChunk<'_> {
                 settled |= 1 << b;
             } else {
                 let layer = self.layers.map(|l| &l[b]);
-                let failed = kernel(batch, input, &mut result, self.time_step, layer) & active;
+                let failed =
+                    kernel.apply(batch, input, &mut result, self.time_step, layer) & active;
                 if failed != 0 && first_failure.is_none() {
                     first_failure = Some(b * PAIR_LANES + failed.trailing_zeros() as usize);
                 }
@@ -1050,6 +1042,60 @@ impl KernelChunk<'_> {
     }
 }
 
+/// The penalty kernel on one batch of pairs, as [`KernelChunk::batches`]
+/// calls it. A trait with an always-inlined method, not a closure: a
+/// closure's body is compiled as a function of its own, without the
+/// x86-64-v3 features of the function that calls it, so the SIMD
+/// operations in it would become calls (`docs/benchmarks.md`, "Where the
+/// time goes").
+trait PairKernel {
+    /// [`penalty_lanes`] or [`penalty_lanes_one_by_one`] on `batch`.
+    fn apply(
+        &mut self,
+        batch: &mut PenaltyBatch<PAIR_LANES>,
+        input: &PenaltyInput<PAIR_LANES>,
+        output: &mut PenaltyOutput<PAIR_LANES>,
+        time_step: f64,
+        layer: Option<&[NodalCompaction; PAIR_LANES]>,
+    ) -> u32;
+}
+
+/// The kernel one lane at a time.
+struct OneByOne;
+
+impl PairKernel for OneByOne {
+    #[inline(always)]
+    fn apply(
+        &mut self,
+        batch: &mut PenaltyBatch<PAIR_LANES>,
+        input: &PenaltyInput<PAIR_LANES>,
+        output: &mut PenaltyOutput<PAIR_LANES>,
+        time_step: f64,
+        layer: Option<&[NodalCompaction; PAIR_LANES]>,
+    ) -> u32 {
+        penalty_lanes_one_by_one(batch, input, output, time_step, layer)
+    }
+}
+
+/// The kernel on four AVX2 lanes.
+#[cfg(target_arch = "x86_64")]
+struct FourLanes(crate::material::lanes::x86::F64x4);
+
+#[cfg(target_arch = "x86_64")]
+impl PairKernel for FourLanes {
+    #[inline(always)]
+    fn apply(
+        &mut self,
+        batch: &mut PenaltyBatch<PAIR_LANES>,
+        input: &PenaltyInput<PAIR_LANES>,
+        output: &mut PenaltyOutput<PAIR_LANES>,
+        time_step: f64,
+        layer: Option<&[NodalCompaction; PAIR_LANES]>,
+    ) -> u32 {
+        crate::contact::kernel::penalty_lanes(self.0, batch, input, output, time_step, layer)
+    }
+}
+
 /// [`KernelChunk::batches`] on four AVX2 lanes, as a `pulp` operation: the
 /// kernel is inlined into pulp's function compiled for x86-64-v3.
 #[cfg(target_arch = "x86_64")]
@@ -1065,10 +1111,7 @@ impl pulp::WithSimd for Avx2Kernel<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> (Option<usize>, f64, u64) {
         let ctx = crate::material::lanes::x86::F64x4::new(self.simd, [0.0; PAIR_LANES]);
-        self.chunk
-            .batches(|batch, input, output, time_step, layer| {
-                crate::contact::kernel::penalty_lanes(ctx, batch, input, output, time_step, layer)
-            })
+        self.chunk.batches(FourLanes(ctx))
     }
 }
 
