@@ -529,3 +529,102 @@ fn ply_contact_case_errors_name_the_key() {
     };
     assert!(e.contains("overlap") && e.contains("\"upper\""), "{e}");
 }
+
+/// The names of the terms of a case's model, in order.
+fn term_names(case: &FormingCase) -> Vec<String> {
+    let built = case.build().unwrap_or_else(|e| panic!("{e}"));
+    built
+        .model
+        .terms
+        .iter()
+        .map(|t| t.name().to_string())
+        .collect()
+}
+
+/// Requirement: `[[tool]] plies` gives a tool a contact term with the
+/// plies it names only; left out, every ply, so the model is the one it
+/// was before the key (the same terms in the same order).
+#[test]
+fn a_tool_has_contact_terms_with_its_plies_only() {
+    let dir = TempDir::new().unwrap();
+    let default = term_names(&load(STACK, dir.path()).unwrap());
+    let with_table = |list: &str| {
+        edit(
+            STACK,
+            &[(
+                "extent = 40.0\n",
+                &format!("extent = 40.0\nplies = {list}\n"),
+            )],
+        )
+    };
+    let every = term_names(&load(&with_table("[\"upper\", \"lower\"]"), dir.path()).unwrap());
+    assert_eq!(every, default);
+    let lower_term = "contact of lower with table";
+    let upper_term = "contact of upper with table";
+    assert!(
+        default.iter().any(|n| n == lower_term) && default.iter().any(|n| n == upper_term),
+        "{default:?}"
+    );
+    let lower = term_names(&load(&with_table("[\"lower\"]"), dir.path()).unwrap());
+    let expected: Vec<String> = default
+        .iter()
+        .filter(|n| *n != upper_term)
+        .cloned()
+        .collect();
+    assert_eq!(lower, expected);
+    let upper = term_names(&load(&with_table("[\"upper\"]"), dir.path()).unwrap());
+    assert!(
+        upper.iter().any(|n| n == upper_term) && !upper.iter().any(|n| n == lower_term),
+        "{upper:?}"
+    );
+}
+
+/// Requirement: a ply a tool does not touch is not pushed by it. The
+/// stack of [`STACK`] with the table touching the upper ply only: the
+/// load pushes the upper ply down onto the lower one, which has nothing
+/// under it and goes through the table, while the upper ply comes to rest
+/// on the table (its mid-surface half a thickness above it, 0.3 mm below
+/// where it started) and carries the whole load to it. The resolved case
+/// names the table's ply.
+///
+/// Tolerances: the upper ply's rest within 1 % of the 0.3 mm it drops
+/// and the table's force at the end within 1 % of the load (as the stack
+/// pressed flat above); the lower ply only has to be clearly below the
+/// table (its mid-surface more than a thickness below where it started).
+#[test]
+fn a_ply_the_tool_does_not_touch_goes_through_it() {
+    let dir = TempDir::new().unwrap();
+    let text = edit(
+        STACK,
+        &[("extent = 40.0\n", "extent = 40.0\nplies = [\"upper\"]\n")],
+    );
+    let case = load(&text, dir.path()).unwrap();
+    let out = TempDir::new().unwrap();
+    let summary = run_forming(&case, out.path(), Progress::Quiet).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(summary.status, RunStatus::Complete);
+    let last = summary.history.last().unwrap();
+    assert!(
+        (last.tools[0].force / 19.62 - 1.0).abs() <= 1e-2,
+        "table force {} N, load 19.62 N",
+        last.tools[0].force
+    );
+    assert!(
+        (last.probes[1][2] + 0.3).abs() <= 3e-3,
+        "upper ply moved {:?}, expected 0.3 mm down onto the table",
+        last.probes[1]
+    );
+    assert!(
+        last.probes[0][2] < -0.3,
+        "lower ply moved {:?}, expected through the table",
+        last.probes[0]
+    );
+    let resolved: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.path().join("case.resolved.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        resolved["case"]["tools"][0]["plies"],
+        serde_json::json!(["upper"]),
+        "{}",
+        resolved["case"]["tools"]
+    );
+}
