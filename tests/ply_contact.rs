@@ -628,3 +628,62 @@ fn a_ply_the_tool_does_not_touch_goes_through_it() {
         resolved["case"]["tools"]
     );
 }
+
+/// Requirement: the shipped stacks of four and eight plies
+/// (`docs/forming.md`, "Stacks of four and eight plies") are laid up as
+/// documented: the fibre angles from the die up, mid-surfaces 0.3 mm apart
+/// from 0.15 mm, one `[[ply_contact]]` per pair of neighbours (μ = 0.336)
+/// and no other, the die touching the bottom ply, the blankholder and the
+/// punch the top ply, resting on its top face; the coarse copy of each
+/// builds (the paper-size models build in `ncform check`).
+#[test]
+fn shipped_stacks_pair_neighbours_and_tools_with_their_plies() {
+    use ncform::case::forming::{PlyMesh, ToolShape};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (file, angles) in [
+        ("hemisphere-0-90-90-0.toml", &[0.0, 90.0, 90.0, 0.0][..]),
+        (
+            "hemisphere-0-45-90-m45-s.toml",
+            &[0.0, 45.0, 90.0, -45.0, -45.0, 90.0, 45.0, 0.0][..],
+        ),
+    ] {
+        let path = root.join("cases").join(file);
+        let case = FormingCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let n = angles.len();
+        let got: Vec<f64> = case.plies.iter().map(|p| p.fibre_angle_deg).collect();
+        assert_eq!(got, angles, "{file}");
+        for (k, ply) in case.plies.iter().enumerate() {
+            let PlyMesh::Rectangle { centre, .. } = &ply.mesh else {
+                panic!("{file}: ply {k} is not a rectangle")
+            };
+            assert!(
+                (centre.z - (0.15 + 0.3 * k as f64)).abs() < 1e-12,
+                "{file}: ply {k} at z = {}",
+                centre.z
+            );
+        }
+        let pairs: Vec<[usize; 2]> = case.ply_contacts.iter().map(|c| c.plies).collect();
+        let neighbours: Vec<[usize; 2]> = (0..n - 1).map(|k| [k, k + 1]).collect();
+        assert_eq!(pairs, neighbours, "{file}");
+        assert!(case.ply_contacts.iter().all(|c| c.friction == 0.336));
+        let tool = |name: &str| case.tools.iter().find(|t| t.name == name).unwrap();
+        assert_eq!(tool("die").plies, vec![0], "{file}");
+        assert_eq!(tool("blankholder").plies, vec![n - 1], "{file}");
+        assert_eq!(tool("punch").plies, vec![n - 1], "{file}");
+        let top = 0.3 * n as f64;
+        assert!((tool("blankholder").origin.z - top).abs() < 1e-12, "{file}");
+        let ToolShape::Sphere { radius } = tool("punch").shape else {
+            panic!("{file}: the punch is not a sphere")
+        };
+        assert!(
+            (tool("punch").origin.z - radius - top).abs() < 1e-9,
+            "{file}"
+        );
+        let coarse = fs::read_to_string(&path)
+            .unwrap()
+            .replace("cells = [84, 84]", "cells = [8, 8]");
+        let dir = TempDir::new().unwrap();
+        let small = load(&coarse, dir.path()).unwrap();
+        small.build().unwrap_or_else(|e| panic!("{file}: {e}"));
+    }
+}
