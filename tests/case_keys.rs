@@ -797,3 +797,44 @@ fn shipped_cases_parse_without_warnings() {
     }
     assert!(count >= 17, "{count} shipped cases");
 }
+
+/// `[[tool]] plies`: the plies a tool touches. An unknown name, an empty
+/// list and a ply named twice are refused with the file, the line, the
+/// key `tool[i].plies`, the list as written and the case's plies; a valid
+/// list resolves to the plies' indices, and leaving the key out gives
+/// every ply.
+#[test]
+fn tool_plies_name_plies_of_the_case_once_each() {
+    let dir = TempDir::new().unwrap();
+    let with = |list: &str| format!("{FORMING}plies = {list}\n");
+    let cases: &[(&str, &[&str])] = &[
+        (
+            "[\"top\"]",
+            &[
+                "tool[1].plies = [\"top\"]",
+                "\"p\"",
+                "\"top\" is none of them",
+            ],
+        ),
+        ("[]", &["tool[1].plies = []", "at least one", "\"p\""]),
+        (
+            "[\"p\", \"p\"]",
+            &["tool[1].plies = [\"p\", \"p\"]", "each ply once"],
+        ),
+    ];
+    for (list, parts) in cases {
+        let text = with(list);
+        let msg = load(dir.path(), &text).unwrap_err();
+        let line = format!("case.toml:{}:", line_of(&text, "plies"));
+        assert_mentions(&msg, &[line.as_str()]);
+        assert_mentions(&msg, parts);
+    }
+    let plies_of = |text: &str| {
+        let Case::Forming(c) = load(dir.path(), text).unwrap() else {
+            panic!("forming")
+        };
+        c.tools.iter().map(|t| t.plies.clone()).collect::<Vec<_>>()
+    };
+    assert_eq!(plies_of(&with("[\"p\"]")), vec![vec![0], vec![0]]);
+    assert_eq!(plies_of(FORMING), vec![vec![0], vec![0]]);
+}

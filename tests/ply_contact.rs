@@ -529,3 +529,161 @@ fn ply_contact_case_errors_name_the_key() {
     };
     assert!(e.contains("overlap") && e.contains("\"upper\""), "{e}");
 }
+
+/// The names of the terms of a case's model, in order.
+fn term_names(case: &FormingCase) -> Vec<String> {
+    let built = case.build().unwrap_or_else(|e| panic!("{e}"));
+    built
+        .model
+        .terms
+        .iter()
+        .map(|t| t.name().to_string())
+        .collect()
+}
+
+/// Requirement: `[[tool]] plies` gives a tool a contact term with the
+/// plies it names only; left out, every ply, so the model is the one it
+/// was before the key (the same terms in the same order).
+#[test]
+fn a_tool_has_contact_terms_with_its_plies_only() {
+    let dir = TempDir::new().unwrap();
+    let default = term_names(&load(STACK, dir.path()).unwrap());
+    let with_table = |list: &str| {
+        edit(
+            STACK,
+            &[(
+                "extent = 40.0\n",
+                &format!("extent = 40.0\nplies = {list}\n"),
+            )],
+        )
+    };
+    let every = term_names(&load(&with_table("[\"upper\", \"lower\"]"), dir.path()).unwrap());
+    assert_eq!(every, default);
+    let lower_term = "contact of lower with table";
+    let upper_term = "contact of upper with table";
+    assert!(
+        default.iter().any(|n| n == lower_term) && default.iter().any(|n| n == upper_term),
+        "{default:?}"
+    );
+    let lower = term_names(&load(&with_table("[\"lower\"]"), dir.path()).unwrap());
+    let expected: Vec<String> = default
+        .iter()
+        .filter(|n| *n != upper_term)
+        .cloned()
+        .collect();
+    assert_eq!(lower, expected);
+    let upper = term_names(&load(&with_table("[\"upper\"]"), dir.path()).unwrap());
+    assert!(
+        upper.iter().any(|n| n == upper_term) && !upper.iter().any(|n| n == lower_term),
+        "{upper:?}"
+    );
+}
+
+/// Requirement: a ply a tool does not touch is not pushed by it. The
+/// stack of [`STACK`] with the table touching the upper ply only: the
+/// load pushes the upper ply down onto the lower one, which has nothing
+/// under it and goes through the table, while the upper ply comes to rest
+/// on the table (its mid-surface half a thickness above it, 0.3 mm below
+/// where it started) and carries the whole load to it. The resolved case
+/// names the table's ply.
+///
+/// Tolerances: the upper ply's rest within 1 % of the 0.3 mm it drops
+/// and the table's force at the end within 1 % of the load (as the stack
+/// pressed flat above); the lower ply only has to be clearly below the
+/// table (its mid-surface more than a thickness below where it started).
+#[test]
+fn a_ply_the_tool_does_not_touch_goes_through_it() {
+    let dir = TempDir::new().unwrap();
+    let text = edit(
+        STACK,
+        &[("extent = 40.0\n", "extent = 40.0\nplies = [\"upper\"]\n")],
+    );
+    let case = load(&text, dir.path()).unwrap();
+    let out = TempDir::new().unwrap();
+    let summary = run_forming(&case, out.path(), Progress::Quiet).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(summary.status, RunStatus::Complete);
+    let last = summary.history.last().unwrap();
+    assert!(
+        (last.tools[0].force / 19.62 - 1.0).abs() <= 1e-2,
+        "table force {} N, load 19.62 N",
+        last.tools[0].force
+    );
+    assert!(
+        (last.probes[1][2] + 0.3).abs() <= 3e-3,
+        "upper ply moved {:?}, expected 0.3 mm down onto the table",
+        last.probes[1]
+    );
+    assert!(
+        last.probes[0][2] < -0.3,
+        "lower ply moved {:?}, expected through the table",
+        last.probes[0]
+    );
+    let resolved: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.path().join("case.resolved.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        resolved["case"]["tools"][0]["plies"],
+        serde_json::json!(["upper"]),
+        "{}",
+        resolved["case"]["tools"]
+    );
+}
+
+/// Requirement: the shipped stacks of four and eight plies
+/// (`docs/forming.md`, "Stacks of four and eight plies") are laid up as
+/// documented: the fibre angles from the die up, mid-surfaces 0.3 mm apart
+/// from 0.15 mm, one `[[ply_contact]]` per pair of neighbours (μ = 0.336)
+/// and no other, the die touching the bottom ply, the blankholder and the
+/// punch the top ply, resting on its top face; the coarse copy of each
+/// builds (the paper-size models build in `ncform check`).
+#[test]
+fn shipped_stacks_pair_neighbours_and_tools_with_their_plies() {
+    use ncform::case::forming::{PlyMesh, ToolShape};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (file, angles) in [
+        ("hemisphere-0-90-90-0.toml", &[0.0, 90.0, 90.0, 0.0][..]),
+        (
+            "hemisphere-0-45-90-m45-s.toml",
+            &[0.0, 45.0, 90.0, -45.0, -45.0, 90.0, 45.0, 0.0][..],
+        ),
+    ] {
+        let path = root.join("cases").join(file);
+        let case = FormingCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let n = angles.len();
+        let got: Vec<f64> = case.plies.iter().map(|p| p.fibre_angle_deg).collect();
+        assert_eq!(got, angles, "{file}");
+        for (k, ply) in case.plies.iter().enumerate() {
+            let PlyMesh::Rectangle { centre, .. } = &ply.mesh else {
+                panic!("{file}: ply {k} is not a rectangle")
+            };
+            assert!(
+                (centre.z - (0.15 + 0.3 * k as f64)).abs() < 1e-12,
+                "{file}: ply {k} at z = {}",
+                centre.z
+            );
+        }
+        let pairs: Vec<[usize; 2]> = case.ply_contacts.iter().map(|c| c.plies).collect();
+        let neighbours: Vec<[usize; 2]> = (0..n - 1).map(|k| [k, k + 1]).collect();
+        assert_eq!(pairs, neighbours, "{file}");
+        assert!(case.ply_contacts.iter().all(|c| c.friction == 0.336));
+        let tool = |name: &str| case.tools.iter().find(|t| t.name == name).unwrap();
+        assert_eq!(tool("die").plies, vec![0], "{file}");
+        assert_eq!(tool("blankholder").plies, vec![n - 1], "{file}");
+        assert_eq!(tool("punch").plies, vec![n - 1], "{file}");
+        let top = 0.3 * n as f64;
+        assert!((tool("blankholder").origin.z - top).abs() < 1e-12, "{file}");
+        let ToolShape::Sphere { radius } = tool("punch").shape else {
+            panic!("{file}: the punch is not a sphere")
+        };
+        assert!(
+            (tool("punch").origin.z - radius - top).abs() < 1e-9,
+            "{file}"
+        );
+        let coarse = fs::read_to_string(&path)
+            .unwrap()
+            .replace("cells = [84, 84]", "cells = [8, 8]");
+        let dir = TempDir::new().unwrap();
+        let small = load(&coarse, dir.path()).unwrap();
+        small.build().unwrap_or_else(|e| panic!("{file}: {e}"));
+    }
+}

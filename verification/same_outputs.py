@@ -33,9 +33,11 @@ Usage (from the repository root; Python 3 standard library only):
 verification cases, and coarse, short-stroke copies of the explicit OAT and
 of every shipped forming case (24 x 24 cells, 30 mm, a shortened programme),
 plus a coarse quasi-static hemisphere. `--set shipped`: every shipped case
-as it is (paper size: about 15 minutes per binary on 2 cores). `--set all`:
-both. A case the base refuses as a case file (exit 2, no run folder: a key
-new with the head) is reported as NEW and neither passes nor fails.
+as it is (paper size: about 15 minutes per binary on 2 cores for the
+paper's cases; the stacks of four and eight plies add more: see
+docs/benchmarks.md). `--set all`: both. A case the base refuses as a case
+file (exit 2, no run folder: a key new with the head, such as the stacks'
+`[[tool]] plies`) is reported as NEW and neither passes nor fails.
 `git_commit` (case.resolved.json's provenance) is masked: it differs
 between any two revisions by design. Exit 0 when every case gives the same
 outputs; the last line reads

@@ -239,6 +239,7 @@ fn forming(c: &FormingCase) -> Value {
             "inside": t.inside,
             "friction": t.friction,
             "motion": format!("{:?}", t.motion),
+            "plies": t.plies.iter().map(|&p| ply_name(p)).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
         "boundaries": c.boundaries.iter().map(|b| json!({
             "ply": ply_name(b.ply),

@@ -646,7 +646,9 @@ impl FormingCase {
     }
 
     /// Each tool's surface, its dof with its condition or its mass and
-    /// weight, and its contact term with each ply.
+    /// weight, and its contact term with each ply it touches (its
+    /// `plies`; a ply it does not touch is neither in contact with it nor
+    /// checked against it).
     fn tool_terms(
         &self,
         plies: &[BuiltPly],
@@ -655,7 +657,7 @@ impl FormingCase {
         dirichlet: &mut Vec<Dirichlet>,
     ) -> Result<Vec<BuiltTool>, BuildError> {
         // Tools: one dof each (fixed, driven or free), and a contact term
-        // per ply and tool.
+        // per tool and ply it touches.
         let mut tools = Vec::new();
         for spec in &self.tools {
             let (surface, drawing) = tool_surface(self, spec)?;
@@ -667,8 +669,14 @@ impl FormingCase {
                 direction,
                 drawing,
             };
-            for (ply, ply_spec) in plies.iter().zip(&self.plies) {
-                model.add(self.tool_contact(&tool, &surface, ply, ply_spec, node_count)?);
+            for &k in &spec.plies {
+                model.add(self.tool_contact(
+                    &tool,
+                    &surface,
+                    &plies[k],
+                    &self.plies[k],
+                    node_count,
+                )?);
             }
             tools.push(tool);
         }

@@ -218,7 +218,7 @@ impl FormingCase {
                 "the ply's areal mass [kg/m²] for gravity (a parameter file has none)",
             ));
         }
-        let tools = tool::tools(&check, &raw.tool, base_dir, gravity.as_ref())?;
+        let tools = tool::tools(&check, &raw.tool, base_dir, gravity.as_ref(), &plies)?;
         let boundaries = conditions::boundaries(&check, &raw.boundary, &plies)?;
         let loads = conditions::loads(&check, &raw.load, &plies)?;
         let probes = conditions::probes(&check, &raw.probe, &plies)?;

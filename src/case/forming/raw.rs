@@ -118,6 +118,7 @@ pub(super) struct ToolRaw {
     pub(super) displacement: Option<Spanned<f64>>,
     pub(super) mass: Option<Spanned<f64>>,
     pub(super) weight: Option<Spanned<f64>>,
+    pub(super) plies: Option<Spanned<Vec<String>>>,
 }
 
 #[derive(Deserialize)]

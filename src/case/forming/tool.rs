@@ -1,7 +1,7 @@
 //! The `[[tool]]` tables of a forming case: each rigid tool's shape and
 //! its geometry keys, its side, origin, axis, friction and drawn extent,
-//! and its motion (fixed, prescribed or floating); then the openings of
-//! the plates that follow a pyramid punch. Key-by-key documentation:
+//! its motion (fixed, prescribed or floating) and the plies it touches;
+//! then the openings of the plates that follow a pyramid punch. Key-by-key documentation:
 //! `docs/cases.md`, "Forming cases".
 
 use std::path::{Path, PathBuf};
@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use toml::Spanned;
 
+use super::ply::PlySpec;
 use super::raw::ToolRaw;
 use super::{GravitySpec, KG_IN_T, STANDARD_GRAVITY, shown_list, vector3};
 use crate::case::bounds::bound;
@@ -139,23 +140,30 @@ pub struct ToolSpec {
     pub motion: ToolMotion,
     /// Half-size of the drawn surface (planes, plates) \[mm\].
     pub extent: f64,
+    /// The plies the tool has a contact term with (indices into
+    /// [`FormingCase::plies`](super::FormingCase::plies), ascending):
+    /// the key `plies`, every ply by default (`docs/cases.md`,
+    /// "`[[tool]]`").
+    pub plies: Vec<usize>,
     /// Line of the tool's `file` (a mesh tool) or `shape` in the case
     /// file: errors of its surface name it.
     pub line: usize,
 }
 
 /// Validates the `[[tool]]` tables in order, each with a name no other
-/// tool has, then computes the openings that follow a punch
-/// ([`resolve_openings`]).
+/// tool has and the plies it touches among `plies`, then computes the
+/// openings that follow a punch ([`resolve_openings`]).
 pub(super) fn tools(
     check: &TomlChecker,
     raw: &[ToolRaw],
     base_dir: &Path,
     gravity: Option<&GravitySpec>,
+    plies: &[PlySpec],
 ) -> Result<Vec<ToolSpec>, ConfigError> {
     let mut tools = Vec::new();
     for (i, t) in raw.iter().enumerate() {
-        let tool = tool_spec(check, t, i, base_dir, gravity)?;
+        let mut tool = tool_spec(check, t, i, base_dir, gravity)?;
+        tool.plies = tool_plies(check, t, i, plies)?;
         if tools.iter().any(|q: &ToolSpec| q.name == tool.name) {
             return Err(check.invalid(
                 0,
@@ -168,6 +176,66 @@ pub(super) fn tools(
     }
     resolve_openings(check, raw, &mut tools)?;
     Ok(tools)
+}
+
+/// A tool's `plies`: the names of the plies it has a contact term with,
+/// each a ply of the case and each once, at least one; every ply when
+/// the key is left out. Returned as ply indices in ascending order (the
+/// order of the plies in the case, whatever the order of the list).
+fn tool_plies(
+    check: &TomlChecker,
+    t: &ToolRaw,
+    i: usize,
+    plies: &[PlySpec],
+) -> Result<Vec<usize>, ConfigError> {
+    let Some(given) = &t.plies else {
+        return Ok((0..plies.len()).collect());
+    };
+    let key = format!("tool[{i}].plies");
+    let line = check.line_of(given);
+    let quoted = |names: &mut dyn Iterator<Item = &String>| {
+        names
+            .map(|n| format!("\"{n}\""))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let names = given.get_ref();
+    let shown = format!("[{}]", quoted(&mut names.iter()));
+    let known = quoted(&mut plies.iter().map(|p| &p.name));
+    if names.is_empty() {
+        return Err(check.invalid(
+            line,
+            &key,
+            shown,
+            &format!(
+                "the names of the plies the tool touches, at least one (the case's plies: {known}; leave the key out for every ply)"
+            ),
+        ));
+    }
+    let mut indices = Vec::with_capacity(names.len());
+    for name in names {
+        let Some(k) = plies.iter().position(|p| &p.name == name) else {
+            return Err(check.invalid(
+                line,
+                &key,
+                shown,
+                &format!(
+                    "the names of plies of the case, one of: {known} (\"{name}\" is none of them)"
+                ),
+            ));
+        };
+        if indices.contains(&k) {
+            return Err(check.invalid(
+                line,
+                &key,
+                shown,
+                &format!("each ply once (\"{name}\" is named twice)"),
+            ));
+        }
+        indices.push(k);
+    }
+    indices.sort_unstable();
+    Ok(indices)
 }
 
 /// A pyramid tool's shape and its placement (the local frame of
@@ -338,6 +406,7 @@ fn tool_spec(
         friction,
         motion,
         extent,
+        plies: Vec::new(),
         line: t
             .file
             .as_ref()
