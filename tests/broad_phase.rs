@@ -462,6 +462,22 @@ fn explicit_forming_run_is_bit_identical_without_the_broad_phase() {
     );
     assert_eq!(a.time_step_range.0, shortest.min(a.stable_step_range.0));
     assert!(a.stable_step_range.0 > 0.5 * a.stable_step_range.1);
+    // What sets the step (`term_steps`): the combined bound is at least
+    // each term's and at most their sum (Weyl), so the critical step at
+    // the start lies between the smallest term step over √(terms with a
+    // bound) and the smallest term step (round-off: 1e-12 relative).
+    assert_eq!(a.term_steps.len(), a.term_seconds.len());
+    let firsts: Vec<f64> = a.term_steps.iter().filter_map(|s| s.first).collect();
+    let smallest = firsts.iter().fold(f64::INFINITY, |m, s| m.min(*s));
+    assert!(firsts.iter().all(|s| *s > 0.0 && s.is_finite()));
+    assert!(
+        a.initial_critical_time_step <= smallest * (1.0 + 1e-12)
+            && a.initial_critical_time_step
+                >= smallest / (firsts.len() as f64).sqrt() * (1.0 - 1e-12),
+        "critical {} against the term steps {:?}",
+        a.initial_critical_time_step,
+        a.term_steps
+    );
     // The punch went down: contact did happen.
     let last = a.records.last().unwrap();
     assert!(last.energies.friction > 0.0 && last.energies.internal > 0.0);

@@ -82,6 +82,11 @@ VARIABLE_SIZE = {"summary.json", "status.json"}
 # folder's provenance record; it names the commit, so it differs by design.
 HEAD_ONLY = {"case.resolved.json"}
 
+# Summary keys that only a newer head writes, dropped wherever they occur:
+# `term_steps`, the step each term alone would allow (new with the
+# explicit summary's account of what sets the step).
+HEAD_ONLY_KEYS = {"term_steps"}
+
 # Times in seconds and speeds on stdout/stderr ("2.85 s", "31.9 M
 # element-cycles/s").
 TIME_PATTERN = re.compile(r"[0-9][0-9.eE+-]* (s|M element-cycles/s)\b")
@@ -203,6 +208,8 @@ def masked(value, parent_file: str = ""):
     if isinstance(value, dict):
         out = {}
         for k, v in value.items():
+            if k in HEAD_ONLY_KEYS:
+                continue
             if k in MASKED_KEYS:
                 out[k] = "<masked>"
             else:

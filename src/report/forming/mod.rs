@@ -155,6 +155,10 @@ pub struct ExplicitFigures {
     pub element_cycles_per_second: f64,
     /// Worker threads.
     pub threads: usize,
+    /// The step each term alone would allow, at the start and at the last
+    /// estimate ([`crate::solver::explicit::TermStep`]): what sets the
+    /// step.
+    pub term_steps: Vec<crate::solver::explicit::TermStep>,
     /// Warnings.
     pub warnings: Vec<String>,
 }
@@ -574,6 +578,7 @@ fn explicit_figures(result: &ExplicitResult, duration: f64) -> ExplicitFigures {
         final_energies: result.records.last().map(|r| r.energies),
         element_cycles_per_second: result.element_cycles_per_second(),
         threads: result.threads,
+        term_steps: result.term_steps.clone(),
         warnings: result.warnings.clone(),
     }
 }

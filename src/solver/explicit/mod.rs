@@ -41,7 +41,7 @@ pub use system::{MassSummary, NODE_BLOCK};
 
 use super::dofs::DofMap;
 use super::status::{RunStatus, Snapshot};
-use crate::model::{Model, State, TermEnergy, TermFailure};
+use crate::model::{FrequencyBound, Model, State, TermEnergy, TermFailure};
 pub use system::{ExplicitSystem, Update};
 
 /// Displacement and velocity of every dof (3 per node).
@@ -203,8 +203,33 @@ pub struct ExplicitResult {
     /// Each term's share of the element passes: its name and wall time
     /// \[s\], in term order.
     pub term_seconds: Vec<(String, f64)>,
+    /// What each term alone would allow as a step: its name and the
+    /// central-difference limit `2/√ω²_t` of its own frequency bound at the
+    /// start and at the last estimate \[s\] (`None`: the term bounds
+    /// nothing), in term order. The step taken is the safety factor times
+    /// the limit of the terms' combined bound, below the smallest of these
+    /// (`docs/explicit.md`, "The stable time step").
+    pub term_steps: Vec<TermStep>,
     /// rayon threads used.
     pub threads: usize,
+}
+
+/// The step a term alone would allow ([`ExplicitResult::term_steps`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TermStep {
+    /// The term's name.
+    pub term: String,
+    /// `true` when the term's stiffness is chosen from the stable step (a
+    /// contact penalty at a fraction of the central-difference limit): its
+    /// step follows the others' by construction and never sets it.
+    pub from_step: bool,
+    /// `2/√ω²_t` at the start \[s\]; left out when the term bounds nothing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first: Option<f64>,
+    /// `2/√ω²_t` at the last estimate \[s\]; left out when the term bounds
+    /// nothing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub last: Option<f64>,
 }
 
 impl ExplicitResult {
@@ -1096,6 +1121,20 @@ impl<'a> ExplicitRun<'a> {
             }
         }
         let increments = self.increments;
+        let limit =
+            |b: &FrequencyBound| Some(system::critical_step(b.total())).filter(|s| s.is_finite());
+        let term_steps = self
+            .model
+            .terms
+            .iter()
+            .zip(self.estimator.first_and_last())
+            .map(|(term, (first, last))| TermStep {
+                term: term.name().to_string(),
+                from_step: term.stiffness_from_time_step(),
+                first: limit(first),
+                last: limit(last),
+            })
+            .collect();
         ExplicitResult {
             status,
             records: self.records,
@@ -1125,6 +1164,7 @@ impl<'a> ExplicitRun<'a> {
                 .map(|t| t.name().to_string())
                 .zip(self.term_seconds)
                 .collect(),
+            term_steps,
             threads: rayon::current_num_threads(),
         }
     }

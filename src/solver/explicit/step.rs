@@ -48,6 +48,8 @@ pub struct StepEstimator {
     growth: Vec<StaleGrowth>,
     /// The bounds entering the sum (scratch).
     in_use: Vec<FrequencyBound>,
+    /// Each term's bound at the start.
+    initial: Vec<FrequencyBound>,
 }
 
 impl StepEstimator {
@@ -67,6 +69,7 @@ impl StepEstimator {
         Ok((
             Self {
                 in_use: bounds.clone(),
+                initial: bounds.clone(),
                 bounds,
                 ages: vec![0; terms],
                 growth: vec![StaleGrowth::default(); terms],
@@ -107,6 +110,12 @@ impl StepEstimator {
             self.in_use[t] = fresh;
         }
         Ok(critical_step(system.combined_frequency(&self.in_use)))
+    }
+
+    /// Per term (in term order): its bound at the start and its last
+    /// refreshed bound.
+    pub fn first_and_last(&self) -> impl Iterator<Item = (&FrequencyBound, &FrequencyBound)> {
+        self.initial.iter().zip(&self.bounds)
     }
 
     /// Per term (in term order), the refreshes that found its bound grown
