@@ -96,6 +96,14 @@ pub struct PlyNodeContact {
     pub normal_force: f64,
     /// Gap of the mid-surfaces at the node \[mm\] (∞ when far).
     pub gap: f64,
+    /// Contact pressure: the normal force over the node's tributary
+    /// (reference) area \[MPa\].
+    pub pressure: f64,
+    /// Slip accumulated on the other ply since the start \[mm\] (the
+    /// friction spring's plastic slip, `docs/contact.md`).
+    pub slip: f64,
+    /// Energy dissipated by friction at the node since the start \[N·mm\].
+    pub friction_dissipation: f64,
 }
 
 /// What one node found at the last increment.
@@ -326,6 +334,11 @@ impl PlyContact {
     /// The model nodes of ply `k`.
     pub fn ply_nodes(&self, k: usize) -> &[usize] {
         &self.plies[k].nodes
+    }
+
+    /// The name of ply `k`.
+    pub fn ply_name(&self, k: usize) -> &str {
+        &self.plies[k].name
     }
 
     /// How many times the candidate lists were built (both passes).
@@ -591,6 +604,7 @@ impl Term for PlyContact {
             let lists = &pass.lists;
             let boxes = &pass.boxes;
             let (springs, dashpots) = (&pass.springs, &pass.dashpots);
+            let areas = &self.areas[k];
             let failed = pass
                 .hits
                 .par_chunks_mut(NODE_CHUNK)
@@ -632,6 +646,7 @@ impl Term for PlyContact {
                             *hit = NO_HIT;
                             o.status = 0;
                             o.normal_force = 0.0;
+                            o.pressure = 0.0;
                             o.gap = f64::INFINITY;
                         };
                         if fresh && contact.is_none() {
@@ -695,7 +710,14 @@ impl Term for PlyContact {
                         };
                         o.status = r.status.code();
                         o.normal_force = r.normal_force;
+                        o.pressure = if areas[i] > 0.0 {
+                            r.normal_force / areas[i]
+                        } else {
+                            0.0
+                        };
                         o.gap = r.gap;
+                        o.slip = s.slip_length;
+                        o.friction_dissipation = s.dissipated;
                     }
                     None
                 })

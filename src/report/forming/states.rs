@@ -76,6 +76,23 @@ pub(super) struct ContactFields {
     ply_status: Vec<i32>,
     ply_normal_force: Vec<f64>,
     ply_gap: Vec<f64>,
+    /// Each ply–ply contact of the ply on its own, in term order: the
+    /// figures of its nodes against the other ply.
+    interfaces: Vec<InterfaceFields>,
+}
+
+/// One ply–ply contact seen from one of its plies: per node of the ply,
+/// its own spring's figures against the other ply (`docs/cases.md`,
+/// "Forming outputs").
+struct InterfaceFields {
+    /// The VTU array names, `ply_contact_<quantity>[<other ply>]`.
+    names: [String; 6],
+    status: Vec<i32>,
+    normal_force: Vec<f64>,
+    pressure: Vec<f64>,
+    gap: Vec<f64>,
+    slip: Vec<f64>,
+    friction_dissipation: Vec<f64>,
 }
 
 pub(super) fn contact_fields(built: &FormingModel, p: usize, model: &Model) -> ContactFields {
@@ -90,17 +107,52 @@ pub(super) fn contact_fields(built: &FormingModel, p: usize, model: &Model) -> C
         ply_status: vec![0; count],
         ply_normal_force: vec![0.0; count],
         ply_gap: vec![f64::INFINITY; count],
+        interfaces: Vec::new(),
     };
     for term in model.terms_of::<crate::model::PlyContact>() {
         for k in 0..2 {
-            for (&node, contact) in term.ply_nodes(k).iter().zip(term.node_contacts(k)) {
+            let nodes = term.ply_nodes(k);
+            if nodes
+                .first()
+                .is_none_or(|n| n.checked_sub(ply.node_offset).is_none_or(|n| n >= count))
+            {
+                continue;
+            }
+            let other = term.ply_name(1 - k);
+            let mut face = InterfaceFields {
+                names: [
+                    "status",
+                    "normal_force",
+                    "pressure",
+                    "gap",
+                    "slip",
+                    "friction_dissipation",
+                ]
+                .map(|q| format!("ply_contact_{q}[{other}]")),
+                status: vec![0; count],
+                normal_force: vec![0.0; count],
+                pressure: vec![0.0; count],
+                gap: vec![-1.0; count],
+                slip: vec![0.0; count],
+                friction_dissipation: vec![0.0; count],
+            };
+            for (&node, contact) in nodes.iter().zip(term.node_contacts(k)) {
                 let Some(n) = node.checked_sub(ply.node_offset).filter(|n| *n < count) else {
                     continue;
                 };
                 c.ply_status[n] = c.ply_status[n].max(contact.status as i32);
                 c.ply_normal_force[n] += contact.normal_force;
                 c.ply_gap[n] = c.ply_gap[n].min(contact.gap);
+                face.status[n] = contact.status as i32;
+                face.normal_force[n] = contact.normal_force;
+                face.pressure[n] = contact.pressure;
+                if contact.gap.is_finite() {
+                    face.gap[n] = contact.gap;
+                }
+                face.slip[n] = contact.slip;
+                face.friction_dissipation[n] = contact.friction_dissipation;
             }
+            c.interfaces.push(face);
         }
     }
     // VTU readers take finite values: a node far from every other ply
@@ -340,6 +392,35 @@ fn ply_point_fields<'a>(
                 data: FieldData::Scalar(&contact.ply_gap),
             },
         ]);
+        for face in &contact.interfaces {
+            let [status, normal_force, pressure, gap, slip, dissipation] = &face.names;
+            point_fields.extend([
+                Field {
+                    name: status,
+                    data: FieldData::Int(&face.status),
+                },
+                Field {
+                    name: normal_force,
+                    data: FieldData::Scalar(&face.normal_force),
+                },
+                Field {
+                    name: pressure,
+                    data: FieldData::Scalar(&face.pressure),
+                },
+                Field {
+                    name: gap,
+                    data: FieldData::Scalar(&face.gap),
+                },
+                Field {
+                    name: slip,
+                    data: FieldData::Scalar(&face.slip),
+                },
+                Field {
+                    name: dissipation,
+                    data: FieldData::Scalar(&face.friction_dissipation),
+                },
+            ]);
+        }
     }
     point_fields
 }
