@@ -36,7 +36,7 @@ plus a coarse quasi-static hemisphere. `--set shipped`: every shipped case
 as it is (paper size: about 15 minutes per binary on 2 cores for the
 paper's cases; the stacks of four and eight plies add more: see
 docs/benchmarks.md). `--set all`: both. A case the base refuses as a case
-file (exit 2, no run folder: a key new with the head, such as the stacks'
+file (an error exit, no run folder: a key new with the head, such as the stacks'
 `[[tool]] plies`) is reported as NEW and neither passes nor fails.
 `git_commit` (case.resolved.json's provenance) is masked: it differs
 between any two revisions by design. What only a newer head writes is
@@ -334,11 +334,12 @@ def main() -> int:
         outcome = {}
         for side, binary in (("base", base_bin), ("head", head_bin)):
             outcome[side] = run_case(binary, case, run_dir, work / side / label)
-        # A case the base refuses as a case file (exit 2, no run folder)
-        # while the head runs it is new with the head (a key the base does
-        # not know): nothing to compare; reported, neither passed nor failed.
-        if (outcome["base"]["code"] == 2 and not (work / "base" / label).exists()
-                and outcome["head"]["code"] != 2):
+        # A case the base refuses as a case file (an error exit before any
+        # run folder) while the head runs it is new with the head (a key
+        # the base does not know): nothing to compare; reported, neither
+        # passed nor failed.
+        if (outcome["base"]["code"] != 0 and not (work / "base" / label).exists()
+                and outcome["head"]["code"] == 0):
             new_cases += 1
             print(f"NEW  [{label}] the base refuses the case: "
                   f"{outcome['base']['stderr'].strip()[:200]!r}", flush=True)
