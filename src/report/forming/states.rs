@@ -394,32 +394,23 @@ fn ply_point_fields<'a>(
         ]);
         for face in &contact.interfaces {
             let [status, normal_force, pressure, gap, slip, dissipation] = &face.names;
-            point_fields.extend([
-                Field {
-                    name: status,
-                    data: FieldData::Int(&face.status),
-                },
-                Field {
-                    name: normal_force,
-                    data: FieldData::Scalar(&face.normal_force),
-                },
-                Field {
-                    name: pressure,
-                    data: FieldData::Scalar(&face.pressure),
-                },
-                Field {
-                    name: gap,
-                    data: FieldData::Scalar(&face.gap),
-                },
-                Field {
-                    name: slip,
-                    data: FieldData::Scalar(&face.slip),
-                },
-                Field {
-                    name: dissipation,
-                    data: FieldData::Scalar(&face.friction_dissipation),
-                },
-            ]);
+            point_fields.push(Field {
+                name: status,
+                data: FieldData::Int(&face.status),
+            });
+            point_fields.extend(
+                [
+                    (normal_force, &face.normal_force),
+                    (pressure, &face.pressure),
+                    (gap, &face.gap),
+                    (slip, &face.slip),
+                    (dissipation, &face.friction_dissipation),
+                ]
+                .map(|(name, values)| Field {
+                    name,
+                    data: FieldData::Scalar(values),
+                }),
+            );
         }
     }
     point_fields
