@@ -96,14 +96,6 @@ pub struct PlyNodeContact {
     pub normal_force: f64,
     /// Gap of the mid-surfaces at the node \[mm\] (∞ when far).
     pub gap: f64,
-    /// Contact pressure: the normal force over the node's tributary
-    /// (reference) area \[MPa\].
-    pub pressure: f64,
-    /// Slip accumulated on the other ply since the start \[mm\] (the
-    /// friction spring's plastic slip, `docs/contact.md`).
-    pub slip: f64,
-    /// Energy dissipated by friction at the node since the start \[N·mm\].
-    pub friction_dissipation: f64,
 }
 
 /// What one node found at the last increment.
@@ -339,6 +331,23 @@ impl PlyContact {
     /// The name of ply `k`.
     pub fn ply_name(&self, k: usize) -> &str {
         &self.plies[k].name
+    }
+
+    /// The tributary (reference) area of each node of ply `k` \[mm²\]:
+    /// a node's contact pressure is its normal force over it.
+    pub fn ply_areas(&self, k: usize) -> &[f64] {
+        &self.areas[k]
+    }
+
+    /// Per node of ply `k`, in the order of [`PlyContact::ply_nodes`]: the
+    /// slip accumulated on the other ply since the start \[mm\] (the
+    /// friction spring's plastic slip, `docs/contact.md`) and the energy
+    /// its friction dissipated \[N·mm\]; empty before the explicit set-up.
+    pub fn node_friction(&self, k: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.passes
+            .get(k)
+            .into_iter()
+            .flat_map(|p| p.states.iter().map(|s| (s.slip_length, s.dissipated)))
     }
 
     /// How many times the candidate lists were built (both passes).
@@ -604,7 +613,6 @@ impl Term for PlyContact {
             let lists = &pass.lists;
             let boxes = &pass.boxes;
             let (springs, dashpots) = (&pass.springs, &pass.dashpots);
-            let areas = &self.areas[k];
             let failed = pass
                 .hits
                 .par_chunks_mut(NODE_CHUNK)
@@ -646,7 +654,6 @@ impl Term for PlyContact {
                             *hit = NO_HIT;
                             o.status = 0;
                             o.normal_force = 0.0;
-                            o.pressure = 0.0;
                             o.gap = f64::INFINITY;
                         };
                         if fresh && contact.is_none() {
@@ -710,14 +717,7 @@ impl Term for PlyContact {
                         };
                         o.status = r.status.code();
                         o.normal_force = r.normal_force;
-                        o.pressure = if areas[i] > 0.0 {
-                            r.normal_force / areas[i]
-                        } else {
-                            0.0
-                        };
                         o.gap = r.gap;
-                        o.slip = s.slip_length;
-                        o.friction_dissipation = s.dissipated;
                     }
                     None
                 })

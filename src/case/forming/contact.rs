@@ -7,6 +7,7 @@
 use toml::Spanned;
 
 use super::ply::{PlySpec, ply_index};
+use super::quoted_names;
 use super::raw::{ContactRaw, PlyContactRaw};
 use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
@@ -103,14 +104,7 @@ pub(super) fn ply_contacts(
         let key = |k: &str| format!("ply_contact[{i}].{k}");
         let names = c.plies.get_ref();
         let line = check.line_of(&c.plies);
-        let shown = format!(
-            "[{}]",
-            names
-                .iter()
-                .map(|n| format!("\"{n}\""))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        let shown = format!("[{}]", quoted_names(names.iter().map(String::as_str)));
         if names.len() != 2 || names[0] == names[1] {
             return Err(check.invalid(
                 line,

@@ -115,6 +115,15 @@ pub fn is_forming(text: &str) -> bool {
     toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("ply"))
 }
 
+/// Names quoted and joined, `"a", "b", "c"` (messages).
+fn quoted_names<'a>(names: impl IntoIterator<Item = &'a str>) -> String {
+    names
+        .into_iter()
+        .map(|n| format!("\"{n}\""))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// A list of numbers as the case file writes it, `[a, b, c]` (messages).
 fn shown_list(values: &[f64]) -> String {
     format!(

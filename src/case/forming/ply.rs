@@ -10,7 +10,7 @@ use nalgebra::Vector3;
 use toml::Spanned;
 
 use super::raw::{BendingRaw, CompactionRaw, PlyMeshRaw, PlyRaw};
-use super::{shown_list, vector3};
+use super::{quoted_names, shown_list, vector3};
 use crate::case::bounds::bound;
 use crate::case::explicit::{DEFAULT_AREAL_MASS, KG_PER_M2_IN_T_PER_MM2};
 use crate::config::{ConfigError, TomlChecker};
@@ -315,11 +315,7 @@ pub(super) fn ply_index(
                 format!("\"{n}\""),
                 &format!(
                     "one of the plies: {}",
-                    plies
-                        .iter()
-                        .map(|p| format!("\"{}\"", p.name))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    quoted_names(plies.iter().map(|p| p.name.as_str()))
                 ),
             )
         }),

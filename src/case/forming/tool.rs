@@ -11,7 +11,7 @@ use toml::Spanned;
 
 use super::ply::PlySpec;
 use super::raw::ToolRaw;
-use super::{GravitySpec, KG_IN_T, STANDARD_GRAVITY, shown_list, vector3};
+use super::{GravitySpec, KG_IN_T, STANDARD_GRAVITY, quoted_names, shown_list, vector3};
 use crate::case::bounds::bound;
 use crate::config::{ConfigError, TomlChecker};
 
@@ -193,15 +193,9 @@ fn tool_plies(
     };
     let key = format!("tool[{i}].plies");
     let line = check.line_of(given);
-    let quoted = |names: &mut dyn Iterator<Item = &String>| {
-        names
-            .map(|n| format!("\"{n}\""))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
     let names = given.get_ref();
-    let shown = format!("[{}]", quoted(&mut names.iter()));
-    let known = quoted(&mut plies.iter().map(|p| &p.name));
+    let shown = format!("[{}]", quoted_names(names.iter().map(String::as_str)));
+    let known = quoted_names(plies.iter().map(|p| p.name.as_str()));
     if names.is_empty() {
         return Err(check.invalid(
             line,

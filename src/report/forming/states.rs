@@ -111,11 +111,7 @@ pub(super) fn contact_fields(built: &FormingModel, p: usize, model: &Model) -> C
     };
     for term in model.terms_of::<crate::model::PlyContact>() {
         for k in 0..2 {
-            let nodes = term.ply_nodes(k);
-            if nodes
-                .first()
-                .is_none_or(|n| n.checked_sub(ply.node_offset).is_none_or(|n| n >= count))
-            {
+            if term.ply_name(k) != ply.name {
                 continue;
             }
             let other = term.ply_name(1 - k);
@@ -136,7 +132,13 @@ pub(super) fn contact_fields(built: &FormingModel, p: usize, model: &Model) -> C
                 slip: vec![0.0; count],
                 friction_dissipation: vec![0.0; count],
             };
-            for (&node, contact) in nodes.iter().zip(term.node_contacts(k)) {
+            for (((&node, contact), area), (slip, dissipated)) in term
+                .ply_nodes(k)
+                .iter()
+                .zip(term.node_contacts(k))
+                .zip(term.ply_areas(k))
+                .zip(term.node_friction(k))
+            {
                 let Some(n) = node.checked_sub(ply.node_offset).filter(|n| *n < count) else {
                     continue;
                 };
@@ -145,12 +147,14 @@ pub(super) fn contact_fields(built: &FormingModel, p: usize, model: &Model) -> C
                 c.ply_gap[n] = c.ply_gap[n].min(contact.gap);
                 face.status[n] = contact.status as i32;
                 face.normal_force[n] = contact.normal_force;
-                face.pressure[n] = contact.pressure;
+                if *area > 0.0 {
+                    face.pressure[n] = contact.normal_force / area;
+                }
                 if contact.gap.is_finite() {
                     face.gap[n] = contact.gap;
                 }
-                face.slip[n] = contact.slip;
-                face.friction_dissipation[n] = contact.friction_dissipation;
+                face.slip[n] = slip;
+                face.friction_dissipation[n] = dissipated;
             }
             c.interfaces.push(face);
         }
