@@ -19,6 +19,7 @@ pub mod config;
 pub mod contact;
 pub mod element;
 pub mod fit;
+pub mod handoff;
 pub mod material;
 pub mod mesh;
 pub mod model;

@@ -13,6 +13,7 @@ pub mod generate;
 pub mod inp;
 pub mod msh;
 pub mod shapes;
+pub mod structural;
 
 use std::collections::BTreeMap;
 
