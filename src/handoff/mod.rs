@@ -15,6 +15,7 @@ pub mod abaqus;
 pub mod calculix;
 pub mod lsdyna;
 pub mod map;
+pub mod run;
 
 /// One shell element of a [`ShellMesh`].
 #[derive(Debug, Clone, PartialEq)]

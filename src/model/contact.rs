@@ -393,6 +393,22 @@ impl ToolContact {
             .is_some_and(|d| *d > self.travelled)
     }
 
+    /// The gap of each of the term's nodes to the tool at `u` \[mm\]: the
+    /// signed distance of the node's mid-surface position to the surface
+    /// less the node's offset (half the ply's contact thickness), whatever
+    /// its distance (no cull); `+∞` where the surface has no answer (a
+    /// sphere's centre). For the defect indicators of the outputs
+    /// (`docs/cases.md`, "Defect indicators"), not the hot path.
+    pub fn node_gaps(&self, u: &[f64]) -> Vec<f64> {
+        (0..self.nodes.len())
+            .map(|i| {
+                self.surface
+                    .closest_normal(&self.relative(i, u), f64::MAX)
+                    .map_or(f64::INFINITY, |p| p.distance - self.offsets[i])
+            })
+            .collect()
+    }
+
     /// The relative position `y = x − q d` of node slot `i` at `u`.
     #[inline]
     fn relative(&self, i: usize, u: &[f64]) -> Vector3<f64> {

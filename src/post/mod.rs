@@ -2,7 +2,9 @@
 
 pub mod contour;
 pub mod csv;
+pub mod defects;
 pub mod fields;
 pub mod forming;
+pub mod orientation;
 pub mod plot;
 pub mod vtu;

@@ -67,7 +67,7 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> WriteError {
 /// What follows the load in the caption and the header of the last
 /// converged state that a run which stopped early writes as one more
 /// output state (`docs/cases.md`, "Incomplete runs and exit codes").
-pub(crate) const LAST_STATE_NOTE: &str = " (last converged state)";
+pub const LAST_STATE_NOTE: &str = " (last converged state)";
 
 /// Units of every number a report writes.
 pub(crate) const UNITS: &str = "mm, N, MPa, tonne/mm^3, s; angles in degrees";

@@ -35,6 +35,7 @@ use crate::solver::NewtonParameters;
 pub(crate) mod build;
 mod conditions;
 mod contact;
+mod defects;
 mod output;
 mod ply;
 mod raw;
@@ -42,6 +43,7 @@ mod tool;
 
 pub use conditions::{BoundarySpec, DEFAULT_ZONE_SIZE, GravitySpec, LoadSpec, ProbeSpec, ZoneSpec};
 pub use contact::{ContactSettings, DEFAULT_PLY_CONTACT_SKIN, PlyContactSpec};
+pub use defects::DefectSpec;
 pub use ply::{PAPER_BENDING, PlyMesh, PlySpec};
 pub(crate) use tool::pyramid_of;
 pub use tool::{ToolMotion, ToolShape, ToolSpec};
@@ -85,6 +87,10 @@ pub struct FormingCase {
     pub camera: MapView,
     /// Whether the PNG maps of every output state are written (`output.maps`).
     pub maps: bool,
+    /// The design rosette the fibre angles are measured in (`[rosette]`).
+    pub rosette: crate::post::orientation::Rosette,
+    /// The thresholds of the defect indicators (`[defects]`).
+    pub defects: DefectSpec,
     /// Gravity, if on.
     pub gravity: Option<GravitySpec>,
     /// Contact settings.
@@ -249,6 +255,8 @@ impl FormingCase {
             states,
             history_rows,
         } = output::output(&check, raw.output.as_ref(), solver_kind)?;
+        let rosette = defects::rosette(&check, raw.rosette.as_ref())?;
+        let defects = defects::defects(&check, raw.defects.as_ref())?;
         Ok(Self {
             title: match &raw.title {
                 None => "forming".to_string(),
@@ -264,6 +272,8 @@ impl FormingCase {
             ply_contacts,
             camera,
             maps,
+            rosette,
+            defects,
             gravity,
             contact,
             solver_kind,

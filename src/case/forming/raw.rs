@@ -28,6 +28,8 @@ pub(super) struct FormingRaw {
     pub(super) gravity: Option<GravityRaw>,
     pub(super) contact: Option<ContactRaw>,
     pub(super) output: Option<OutputRaw>,
+    pub(super) rosette: Option<RosetteRaw>,
+    pub(super) defects: Option<DefectsRaw>,
     pub(super) solver: Option<Spanned<SolverChoice>>,
     pub(super) explicit: Option<ExplicitRaw>,
 }
@@ -195,4 +197,27 @@ pub(super) struct OutputRaw {
     pub(super) history: Option<Spanned<i64>>,
     pub(super) camera: Option<Spanned<String>>,
     pub(super) maps: Option<bool>,
+}
+
+/// `[rosette]`: the design rosette of the fibre angles.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RosetteRaw {
+    pub(super) origin: Option<Spanned<Vec<f64>>>,
+    pub(super) direction: Option<Spanned<Vec<f64>>>,
+    pub(super) rule: Option<Spanned<String>>,
+    pub(super) fallback: Option<Spanned<Vec<f64>>>,
+}
+
+/// `[defects]`: the thresholds of the defect indicators.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct DefectsRaw {
+    pub(super) tool_gap: Option<Spanned<f64>>,
+    pub(super) curvature: Option<Spanned<f64>>,
+    pub(super) slack_line_force: Option<Spanned<f64>>,
+    pub(super) waviness_line_force: Option<Spanned<f64>>,
+    pub(super) waviness_wavelength: Option<Spanned<f64>>,
+    pub(super) roving_pitch: Option<Spanned<f64>>,
+    pub(super) gap_width: Option<Spanned<f64>>,
 }

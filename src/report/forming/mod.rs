@@ -96,8 +96,38 @@ pub struct FormingSummary {
     pub wall_seconds: f64,
     /// What is read on the blanks.
     pub forming: FormingFigures,
+    /// The defect indicators' areas per ply (`docs/cases.md`, "Defect
+    /// indicators").
+    pub defects: DefectFigures,
     /// The history.
     pub history: Vec<FormingRow>,
+}
+
+/// The defect indicators of a forming run in `summary.json`: each ply's
+/// thresholds, and its areas above them at every output state and at the
+/// last one written \[mm², formed area\].
+#[derive(Debug, Clone, Serialize)]
+pub struct DefectFigures {
+    /// Per ply: its name and thresholds.
+    pub thresholds: Vec<(String, crate::post::defects::DefectThresholds)>,
+    /// Per output state and ply, the areas.
+    pub states: Vec<PlyDefectAreas>,
+    /// Per ply, the areas at the last state written (the end of a complete
+    /// run).
+    #[serde(rename = "final")]
+    pub last: Vec<PlyDefectAreas>,
+}
+
+/// One ply's defect areas at one output state.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlyDefectAreas {
+    /// The stroke \[mm\] (or `λ` without a stroke tool).
+    pub stroke: f64,
+    /// The ply.
+    pub ply: String,
+    /// The areas \[mm²\].
+    #[serde(flatten)]
+    pub areas: crate::post::defects::DefectAreas,
 }
 
 /// What is read on the blanks, at the output states (`docs/forming.md`).
@@ -188,6 +218,7 @@ pub struct FormingFiles {
     outline_states: Vec<OutlineState>,
     state_rows: Vec<FormingRow>,
     mode_states: Vec<ModeAreas>,
+    defect_states: Vec<PlyDefectAreas>,
     /// The last converged state when it is not an output state.
     last: Option<LastState>,
     wall: Instant,
@@ -214,6 +245,7 @@ impl FormingFiles {
             outline_states: Vec::new(),
             state_rows: Vec::new(),
             mode_states: Vec::new(),
+            defect_states: Vec::new(),
             last: None,
             wall: Instant::now(),
         }
@@ -237,7 +269,7 @@ impl FormingFiles {
         let load = row.load;
         let due = case.states.iter().filter(|s| **s <= load + 1e-9).count();
         let contact: Vec<ContactFields> = (0..built.plies.len())
-            .map(|p| contact_fields(built, p, snapshot.model))
+            .map(|p| contact_fields(built, p, snapshot.model, Some(snapshot.u)))
             .collect();
         if due <= self.written_states {
             self.last = Some(LastState {
@@ -351,6 +383,13 @@ impl FormingFiles {
                 &caption,
                 files,
             );
+            if let Some(areas) = written.defects {
+                self.defect_states.push(PlyDefectAreas {
+                    stroke: row.stroke,
+                    ply: ply.name.clone(),
+                    areas,
+                });
+            }
             if let Some(areas) = written.areas {
                 self.mode_states.push(ModeAreas {
                     stroke: row.stroke,
@@ -559,6 +598,24 @@ impl FormingFiles {
                     .collect(),
                 states: std::mem::take(&mut self.state_rows),
                 deformation_modes: std::mem::take(&mut self.mode_states),
+            },
+            defects: {
+                let states = std::mem::take(&mut self.defect_states);
+                let last = built
+                    .plies
+                    .iter()
+                    .filter_map(|ply| states.iter().rev().find(|d| d.ply == ply.name).cloned())
+                    .collect();
+                DefectFigures {
+                    thresholds: built
+                        .plies
+                        .iter()
+                        .zip(&case.plies)
+                        .map(|(ply, spec)| (ply.name.clone(), case.defects.thresholds(spec)))
+                        .collect(),
+                    states,
+                    last,
+                }
             },
             history: std::mem::take(&mut self.history),
         }
