@@ -13,6 +13,11 @@
 //!
 //! [`contour_layout`] tells where each map lands in the picture (the pixel
 //! of a point in mm, the colour of a value), for annotations and tests.
+//!
+//! [`write_contour_png_overlaid`] draws a [`MapOverlay`] over the maps:
+//! labelled polylines (tool outlines) with a legend, and for a categorical
+//! field a fixed colour per class with a legend instead of the colour bar
+//! ([`contour_layout_overlaid`] tells where things land).
 
 use std::path::Path;
 
@@ -381,8 +386,8 @@ fn bounding_box(map: &ContourMap) -> ((f64, f64), (f64, f64)) {
 const SUB: f64 = 256.0;
 
 /// Fills the triangles of `map` into an RGB image of the plotting rectangle
-/// (white background).
-fn rasterise(map: &ContourMap, frame: &MapFrame) -> Vec<u8> {
+/// (white background), each in the colour `colour` gives its value.
+fn rasterise(map: &ContourMap, frame: &MapFrame, colour: impl Fn(f64) -> [u8; 3]) -> Vec<u8> {
     let (w, h) = (frame.plot_size.0 as i64, frame.plot_size.1 as i64);
     let mut img = vec![255u8; (w * h * 3) as usize];
     let (ox, oy) = (
@@ -412,7 +417,7 @@ fn rasterise(map: &ContourMap, frame: &MapFrame) -> Vec<u8> {
         if area < 0 {
             std::mem::swap(&mut b, &mut c);
         }
-        let rgb = frame.colour(value);
+        let rgb = colour(value);
         // Pixel range whose centres (i·SUB + SUB/2) may lie inside.
         let lo_x = a.0.min(b.0).min(c.0);
         let hi_x = a.0.max(b.0).max(c.0);
@@ -504,49 +509,7 @@ pub fn write_contour_png_viewed(
     size: (u32, u32),
     view: MapView,
 ) -> Result<(), PlotError> {
-    let mirrored_points: Vec<Vec<[f64; 2]>>;
-    let mirrored: Vec<ContourMap>;
-    let maps = match view {
-        MapView::Above => maps,
-        MapView::Below => {
-            mirrored_points = maps
-                .iter()
-                .map(|m| m.points.iter().map(|p| [-p[0], p[1]]).collect())
-                .collect();
-            mirrored = maps
-                .iter()
-                .zip(&mirrored_points)
-                .map(|(m, points)| ContourMap {
-                    points,
-                    ..m.clone()
-                })
-                .collect();
-            &mirrored
-        }
-    };
-    ensure_font();
-    let frames = contour_layout(maps, size).map_err(|e| PlotError::Layout {
-        path: path.to_path_buf(),
-        error: Box::new(e),
-    })?;
-    let fail = |e: &dyn std::fmt::Display| PlotError::ContourMap {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    let dims = size;
-    let mut buffer = vec![0; 3 * dims.0 as usize * dims.1 as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buffer, dims).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| fail(&e))?;
-        for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {
-            let px0 = k as i32 * size.0 as i32 / maps.len() as i32;
-            let px1 = (k as i32 + 1) * size.0 as i32 / maps.len() as i32;
-            draw_map(&root, map, frame, (px0, px1), view).map_err(|e| fail(&e))?;
-        }
-        root.present().map_err(|e| fail(&e))?;
-    }
-    save_png(path, &buffer, dims).map_err(|e| fail(&e))?;
-    Ok(())
+    write_contour_png_overlaid(path, maps, size, view, &MapOverlay::default())
 }
 
 fn draw_map<DB: DrawingBackend>(
@@ -555,6 +518,8 @@ fn draw_map<DB: DrawingBackend>(
     frame: &MapFrame,
     (px0, px1): (i32, i32),
     view: MapView,
+    plot_image: Vec<u8>,
+    colour_bar: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let x_sign = if view == MapView::Below { -1.0 } else { 1.0 };
     // Title, centred over the plot just above it.
@@ -586,8 +551,7 @@ fn draw_map<DB: DrawingBackend>(
         (x0..x0 + pw, y0..y0 + ph),
         "contour layout and plotters disagree on the plotting rectangle"
     );
-    let img = rasterise(map, frame);
-    if let Some(el) = BitMapElement::with_owned_buffer((x0, y0), frame.plot_size, img) {
+    if let Some(el) = BitMapElement::with_owned_buffer((x0, y0), frame.plot_size, plot_image) {
         root.draw(&el)?;
     }
     chart
@@ -613,6 +577,9 @@ fn draw_map<DB: DrawingBackend>(
         [(x0 - 1, y0 - 1), (x0 + pw, y0 + ph)],
         frame_style,
     ))?;
+    if !colour_bar {
+        return Ok(());
+    }
 
     // The colour bar: strip, frame, ticks on the right, label beyond them.
     let (bx, by) = frame.bar_origin;
@@ -649,5 +616,443 @@ fn draw_map<DB: DrawingBackend>(
     .pos(Pos::new(HPos::Center, VPos::Center));
     let desc_x = (bx + bw + 9 + label_w + 14).min(px1 - FONT_DESC as i32 / 2 - 2);
     root.draw_text(&map.label, &desc_style, (desc_x, by + bh / 2))?;
+    Ok(())
+}
+
+/// A polyline drawn over a map, e.g. the outline of a tool, with the label
+/// the legend shows for it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelledPolyline {
+    /// Legend label, e.g. `punch`.
+    pub label: String,
+    /// Points `(x, y)` in the map's coordinates \[mm\], in drawing order.
+    pub points: Vec<[f64; 2]>,
+    /// Whether the last point is joined back to the first.
+    pub closed: bool,
+}
+
+/// One class of a categorical map: its legend name and fill colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Category {
+    /// Legend name, e.g. `sticking`.
+    pub name: String,
+    /// Fill colour, 8-bit RGB.
+    pub colour: [u8; 3],
+}
+
+/// Fill colours for up to 8 classes of a categorical map: a light grey for
+/// a "none" class 0, then the Okabe–Ito colours (distinct for colour-blind
+/// readers): vermillion, blue, orange, reddish purple, bluish green, sky
+/// blue, yellow.
+pub const CATEGORY_COLOURS: [[u8; 3]; 8] = [
+    [220, 220, 220],
+    [213, 94, 0],
+    [0, 114, 178],
+    [230, 159, 0],
+    [204, 121, 167],
+    [0, 158, 115],
+    [86, 180, 233],
+    [240, 228, 66],
+];
+
+/// The colour of the centre line of an outline (it has a white rim, so it
+/// stands out on dark and light fills alike).
+pub const OUTLINE_COLOUR: [u8; 3] = [0, 0, 0];
+
+/// What [`write_contour_png_overlaid`] draws over every map of a picture.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MapOverlay<'a> {
+    /// Polylines drawn over the triangles (black, 2 px, with a thin white
+    /// rim), the k-th solid, dashed, dotted or dash-dotted (k mod 4), each
+    /// listed with its label in a legend right of the map. Parts outside the
+    /// plotting rectangle are clipped (the triangles set the map's extent).
+    pub outlines: &'a [LabelledPolyline],
+    /// `Some`: the values are class indices; a finite integral value `k` in
+    /// `0..categories.len()` is drawn in `categories[k].colour`, any other
+    /// value in [`NO_VALUE_GREY`], and the colour bar is replaced by a
+    /// legend with a swatch and the name of each class under the map's
+    /// label (the map's range is ignored).
+    pub categories: Option<&'a [Category]>,
+}
+
+impl MapOverlay<'_> {
+    fn is_empty(&self) -> bool {
+        self.outlines.is_empty() && self.categories.is_none()
+    }
+}
+
+// Legend column reserved right of each map with an overlay.
+const LEGEND_W: i32 = 170;
+const LEGEND_ROW: i32 = 24;
+const SWATCH: i32 = 18;
+const SAMPLE_W: u32 = 34;
+const SAMPLE_H: u32 = 14;
+// Outline line: core and rim half-widths [px]; dash patterns [px on, off, …].
+const OUTLINE_CORE: f64 = 1.0;
+const OUTLINE_RIM: f64 = 2.2;
+const OUTLINE_DASHES: [&[f64]; 4] = [&[], &[10.0, 5.0], &[2.5, 3.5], &[10.0, 4.0, 2.5, 4.0]];
+// Pixel coordinates of outline points are kept within ±this (points farther
+// away, e.g. 1e300 mm, would overflow).
+const OUTLINE_FAR: f64 = 1e9;
+
+/// The colour of `value` as a class index among `categories`.
+fn category_colour(value: f64, categories: &[Category]) -> [u8; 3] {
+    if value.is_finite() && value >= 0.0 && value.fract() == 0.0 && value < categories.len() as f64
+    {
+        categories[value as usize].colour
+    } else {
+        NO_VALUE_GREY
+    }
+}
+
+/// Where each map of [`write_contour_png_overlaid`] goes: as
+/// [`contour_layout`] when the overlay is empty; otherwise each map's
+/// column is laid out narrower by a legend strip on its right. For a
+/// categorical overlay the colour-bar fields of the frame tell where the
+/// legend starts.
+///
+/// # Errors
+/// As [`contour_layout`], and [`PlotError::OutlineNotFinite`] (naming the
+/// first map and the outline) when an outline has a point that is not
+/// finite.
+pub fn contour_layout_overlaid(
+    maps: &[ContourMap],
+    size: (u32, u32),
+    overlay: &MapOverlay,
+) -> Result<Vec<MapFrame>, PlotError> {
+    if overlay.is_empty() {
+        return contour_layout(maps, size);
+    }
+    if maps.is_empty() {
+        return Err(PlotError::NoMap);
+    }
+    let (w, n) = (size.0 as i32, maps.len() as i32);
+    let mut frames = Vec::with_capacity(maps.len());
+    for (k, map) in maps.iter().enumerate() {
+        for outline in overlay.outlines {
+            if let Some(i) = outline
+                .points
+                .iter()
+                .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+            {
+                return Err(PlotError::OutlineNotFinite {
+                    title: map.title.clone(),
+                    outline: outline.label.clone(),
+                    point: i,
+                });
+            }
+        }
+        let px0 = k as i32 * w / n;
+        let px1 = (k as i32 + 1) * w / n;
+        let column = (px1 - px0 - LEGEND_W).max(0) as u32;
+        let map = ContourMap {
+            range: if overlay.categories.is_some() {
+                None
+            } else {
+                map.range
+            },
+            ..map.clone()
+        };
+        let mut frame = match contour_layout(std::slice::from_ref(&map), (column, size.1)) {
+            Ok(mut f) => f.remove(0),
+            Err(PlotError::TooSmall { title, .. }) => {
+                return Err(PlotError::TooSmall {
+                    title,
+                    width: size.0,
+                    height: size.1,
+                    maps: maps.len(),
+                });
+            }
+            Err(e) => return Err(e),
+        };
+        frame.plot_origin.0 += px0;
+        frame.bar_origin.0 += px0;
+        frames.push(frame);
+    }
+    Ok(frames)
+}
+
+/// [`write_contour_png_viewed`] with `overlay` drawn over every map: tool
+/// outlines with a legend, and for a categorical field a fixed colour per
+/// class with a legend instead of the colour bar (see [`MapOverlay`];
+/// [`contour_layout_overlaid`] tells where things land). Seen from below,
+/// the outlines are mirrored in x with the maps. With an empty overlay the
+/// picture is that of [`write_contour_png_viewed`].
+///
+/// # Errors
+/// As [`write_contour_png`]; an outline point that is not finite is a
+/// [`PlotError::Layout`] wrapping [`PlotError::OutlineNotFinite`], and no
+/// file is written.
+pub fn write_contour_png_overlaid(
+    path: &Path,
+    maps: &[ContourMap],
+    size: (u32, u32),
+    view: MapView,
+    overlay: &MapOverlay,
+) -> Result<(), PlotError> {
+    let mirrored_points: Vec<Vec<[f64; 2]>>;
+    let mirrored: Vec<ContourMap>;
+    let mirrored_outlines: Vec<LabelledPolyline>;
+    let (maps, outlines) = match view {
+        MapView::Above => (maps, overlay.outlines),
+        MapView::Below => {
+            mirrored_points = maps
+                .iter()
+                .map(|m| m.points.iter().map(|p| [-p[0], p[1]]).collect())
+                .collect();
+            mirrored = maps
+                .iter()
+                .zip(&mirrored_points)
+                .map(|(m, points)| ContourMap {
+                    points,
+                    ..m.clone()
+                })
+                .collect();
+            mirrored_outlines = overlay
+                .outlines
+                .iter()
+                .map(|o| LabelledPolyline {
+                    points: o.points.iter().map(|p| [-p[0], p[1]]).collect(),
+                    ..o.clone()
+                })
+                .collect();
+            (&mirrored[..], &mirrored_outlines[..])
+        }
+    };
+    let overlay = MapOverlay {
+        outlines,
+        categories: overlay.categories,
+    };
+    ensure_font();
+    let frames = contour_layout_overlaid(maps, size, &overlay).map_err(|e| PlotError::Layout {
+        path: path.to_path_buf(),
+        error: Box::new(e),
+    })?;
+    let fail = |e: &dyn std::fmt::Display| PlotError::ContourMap {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let reserve = if overlay.is_empty() { 0 } else { LEGEND_W };
+    let dims = size;
+    let mut buffer = vec![0; 3 * dims.0 as usize * dims.1 as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, dims).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        for (k, (map, frame)) in maps.iter().zip(&frames).enumerate() {
+            let px0 = k as i32 * size.0 as i32 / maps.len() as i32;
+            let px1 = (k as i32 + 1) * size.0 as i32 / maps.len() as i32;
+            let mut img = match overlay.categories {
+                Some(c) => rasterise(map, frame, |v| category_colour(v, c)),
+                None => rasterise(map, frame, |v| frame.colour(v)),
+            };
+            draw_outlines(&mut img, frame, overlay.outlines);
+            let colour_bar = overlay.categories.is_none();
+            draw_map(
+                &root,
+                map,
+                frame,
+                (px0, px1 - reserve),
+                view,
+                img,
+                colour_bar,
+            )
+            .map_err(|e| fail(&e))?;
+            if !overlay.is_empty() {
+                let (x, top) = if colour_bar {
+                    (px1 - reserve + 6, frame.bar_origin.1)
+                } else {
+                    (
+                        frame.bar_origin.0,
+                        frame.plot_origin.1.min(frame.bar_origin.1),
+                    )
+                };
+                draw_legend(&root, map, &overlay, (x, top)).map_err(|e| fail(&e))?;
+            }
+        }
+        root.present().map_err(|e| fail(&e))?;
+    }
+    save_png(path, &buffer, dims).map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+/// Draws the outlines into the plotting rectangle's image: first the white
+/// rims of all, then the black cores (so a rim never covers a core).
+fn draw_outlines(img: &mut [u8], frame: &MapFrame, outlines: &[LabelledPolyline]) {
+    let (ox, oy) = (
+        f64::from(frame.plot_origin.0),
+        f64::from(frame.plot_origin.1),
+    );
+    let pixels: Vec<Vec<(f64, f64)>> = outlines
+        .iter()
+        .map(|o| {
+            o.points
+                .iter()
+                .map(|&p| {
+                    let (u, v) = frame.to_pixel(p);
+                    let far = |z: f64| z.clamp(-OUTLINE_FAR, OUTLINE_FAR);
+                    (far(u - ox), far(v - oy))
+                })
+                .collect()
+        })
+        .collect();
+    for (radius, colour) in [(OUTLINE_RIM, [255; 3]), (OUTLINE_CORE, OUTLINE_COLOUR)] {
+        for (k, (o, pts)) in outlines.iter().zip(&pixels).enumerate() {
+            let dashes = OUTLINE_DASHES[k % OUTLINE_DASHES.len()];
+            stroke(img, frame.plot_size, pts, o.closed, dashes, radius, colour);
+        }
+    }
+}
+
+/// Whether arc length `s` [px] falls on a dash of the pattern `dashes`
+/// (on, off, on, off … lengths; empty: a solid line).
+fn on_dash(s: f64, dashes: &[f64]) -> bool {
+    let period: f64 = dashes.iter().sum();
+    if dashes.is_empty() || period <= 0.0 {
+        return true;
+    }
+    let mut m = s.rem_euclid(period);
+    for (i, &d) in dashes.iter().enumerate() {
+        if m < d {
+            return i % 2 == 0;
+        }
+        m -= d;
+    }
+    true
+}
+
+/// Sets the pixels of an RGB image of `size` whose centres lie within
+/// `radius` of the polyline `pts` (pixel coordinates, the centre of pixel
+/// `(i, j)` at `(i + 0.5, j + 0.5)`) and on a dash of `dashes`, to `colour`.
+/// Segments are clipped to the image first, so far points cost nothing.
+fn stroke(
+    img: &mut [u8],
+    size: (u32, u32),
+    pts: &[(f64, f64)],
+    closed: bool,
+    dashes: &[f64],
+    radius: f64,
+    colour: [u8; 3],
+) {
+    let (w, h) = (i64::from(size.0), i64::from(size.1));
+    let margin = radius + 1.0;
+    let (xmin, xmax) = (-margin, w as f64 + margin);
+    let (ymin, ymax) = (-margin, h as f64 + margin);
+    let mut segments: Vec<((f64, f64), (f64, f64))> =
+        pts.windows(2).map(|s| (s[0], s[1])).collect();
+    if closed && pts.len() > 2 {
+        segments.push((pts[pts.len() - 1], pts[0]));
+    }
+    let mut s0 = 0.0;
+    for (a, b) in segments {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let len = dx.hypot(dy);
+        // Liang–Barsky clipping of a + t (b − a), t ∈ [0, 1].
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (p, q) in [
+            (-dx, a.0 - xmin),
+            (dx, xmax - a.0),
+            (-dy, a.1 - ymin),
+            (dy, ymax - a.1),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    t1 = -1.0;
+                }
+            } else if p < 0.0 {
+                t0 = t0.max(q / p);
+            } else {
+                t1 = t1.min(q / p);
+            }
+        }
+        if t0 <= t1 {
+            let c = (a.0 + t0 * dx, a.1 + t0 * dy);
+            let d = (a.0 + t1 * dx, a.1 + t1 * dy);
+            let (cx, cy) = (d.0 - c.0, d.1 - c.1);
+            let clen2 = cx * cx + cy * cy;
+            let start = s0 + t0 * len;
+            let i0 = ((c.0.min(d.0) - radius - 0.5).floor() as i64).max(0);
+            let i1 = ((c.0.max(d.0) + radius).ceil() as i64).min(w - 1);
+            let j0 = ((c.1.min(d.1) - radius - 0.5).floor() as i64).max(0);
+            let j1 = ((c.1.max(d.1) + radius).ceil() as i64).min(h - 1);
+            for j in j0..=j1 {
+                let py = j as f64 + 0.5;
+                for i in i0..=i1 {
+                    let px = i as f64 + 0.5;
+                    let t = if clen2 > 0.0 {
+                        (((px - c.0) * cx + (py - c.1) * cy) / clen2).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let (qx, qy) = (c.0 + t * cx, c.1 + t * cy);
+                    if (px - qx).hypot(py - qy) <= radius
+                        && on_dash(start + t * clen2.sqrt(), dashes)
+                    {
+                        let k = 3 * (j * w + i) as usize;
+                        img[k..k + 3].copy_from_slice(&colour);
+                    }
+                }
+            }
+        }
+        s0 += len;
+    }
+}
+
+/// Draws the legend of a map from `(x, top)` down: for a categorical
+/// overlay the map's label and a swatch with the name of each class, then
+/// a sample of each outline's line with its label.
+fn draw_legend<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    map: &ContourMap,
+    overlay: &MapOverlay,
+    (x, top): (i32, i32),
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let text = TextStyle::from(("sans-serif", FONT_TICKS).into_font())
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let heading = TextStyle::from(("sans-serif", FONT_DESC).into_font())
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let frame_style = ShapeStyle::from(&BLACK).stroke_width(1);
+    let mut y = top + LEGEND_ROW / 2;
+    if let Some(categories) = overlay.categories {
+        root.draw_text(&map.label, &heading, (x, y))?;
+        y += LEGEND_ROW;
+        for c in categories {
+            let [r, g, b] = c.colour;
+            let (sx, sy) = (x, y - SWATCH / 2);
+            root.draw(&Rectangle::new(
+                [(sx, sy), (sx + SWATCH, sy + SWATCH)],
+                RGBColor(r, g, b).filled(),
+            ))?;
+            root.draw(&Rectangle::new(
+                [(sx, sy), (sx + SWATCH, sy + SWATCH)],
+                frame_style,
+            ))?;
+            root.draw_text(&c.name, &text, (x + SWATCH + 8, y))?;
+            y += LEGEND_ROW;
+        }
+        y += LEGEND_ROW / 2;
+    }
+    for (k, o) in overlay.outlines.iter().enumerate() {
+        let (sw, sh) = (SAMPLE_W, SAMPLE_H);
+        let mut img = vec![255u8; (3 * sw * sh) as usize];
+        let line = [
+            (1.0, f64::from(sh) / 2.0),
+            (f64::from(sw) - 1.0, f64::from(sh) / 2.0),
+        ];
+        let dashes = OUTLINE_DASHES[k % OUTLINE_DASHES.len()];
+        stroke(
+            &mut img,
+            (sw, sh),
+            &line,
+            false,
+            dashes,
+            OUTLINE_CORE,
+            OUTLINE_COLOUR,
+        );
+        if let Some(el) = BitMapElement::with_owned_buffer((x, y - sh as i32 / 2), (sw, sh), img) {
+            root.draw(&el)?;
+        }
+        root.draw_text(&o.label, &text, (x + sw as i32 + 8, y))?;
+        y += LEGEND_ROW;
+    }
     Ok(())
 }

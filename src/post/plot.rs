@@ -81,6 +81,16 @@ pub enum PlotError {
         /// The point's index.
         point: usize,
     },
+    /// A point of an outline drawn over a map is not finite.
+    #[error("map \"{title}\": point {point} of outline \"{outline}\" is not finite")]
+    OutlineNotFinite {
+        /// The map's title.
+        title: String,
+        /// The outline's label.
+        outline: String,
+        /// The point's index in the outline.
+        point: usize,
+    },
     /// A map's triangle refers to a point past the end of the points.
     #[error(
         "map \"{title}\": triangle {triangle} refers to point {point}, but there are {points} points"
