@@ -69,8 +69,8 @@ impl ShellMesh {
         let el = &self.elements[e];
         let mut c = [0.0; 3];
         for &n in &el.nodes {
-            for k in 0..3 {
-                c[k] += self.nodes[n][k];
+            for (ck, xk) in c.iter_mut().zip(self.nodes[n]) {
+                *ck += xk;
             }
         }
         c.map(|v| v / el.nodes.len() as f64)
