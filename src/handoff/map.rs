@@ -498,7 +498,9 @@ fn map_element(
 ) -> ElementMap {
     let h = longest_side(target, e);
     let n = options.samples_per_edge.unwrap_or_else(|| {
-        let n = (SAMPLES_PER_PLY_EDGE * h / ply_edge).ceil();
+        // The 1e-9 keeps an element of exactly k ply edges at k·2 samples
+        // despite the rounding of its coordinates.
+        let n = (SAMPLES_PER_PLY_EDGE * h / ply_edge - 1e-9).ceil();
         if n.is_finite() {
             (n as usize).clamp(1, MAX_AUTO_SAMPLES_PER_EDGE)
         } else {
