@@ -405,11 +405,14 @@ fn spherical_cap_maps_within_three_degrees_and_the_flange_stays_unmapped() {
     }
 }
 
+/// Nodes, triangles and fibres of a ply.
+type Ply = (Vec<[f64; 3]>, Vec<[usize; 3]>, Vec<[f64; 3]>);
+
 /// A flat ply on [−5, 25]² (0.625 mm cells, 4608 triangles) with shear
 /// bands 1.25 mm wide across x alternating +30° and −30°; the −30° band's
 /// vectors point the other way ((−cos 30°, sin 30°), the same fibre as
 /// (cos 30°, −sin 30°)), so a plain vector average would point along y.
-fn banded_ply() -> (Vec<[f64; 3]>, Vec<[usize; 3]>, Vec<[f64; 3]>) {
+fn banded_ply() -> Ply {
     let (nodes, tris) = grid_ply(-5.0, -5.0, 0.625, 48, |_, _| 0.0);
     let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
     let fibre = tris
