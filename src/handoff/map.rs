@@ -129,7 +129,10 @@ pub struct MapResult {
     /// ply does not cover the element.
     pub fibre: Vec<Option<[f64; 3]>>,
     /// The covered fraction of the element's area: hit weight over total
-    /// sample weight (0 to 1).
+    /// sample weight (0 to 1). A sample beyond the ply's edge but within
+    /// the tolerance of it counts as a hit (it projects onto the edge), so
+    /// at the ply's boundary the coverage is high by up to about
+    /// `tolerance / element width`.
     pub coverage: Vec<f64>,
     /// The smallest distance from a sample point to the ply \[mm\] (NaN for
     /// a degenerate element).
