@@ -1,6 +1,7 @@
 //! Triangle meshes of the fabric: the [`Mesh`] container, the OAT specimen
 //! generator ([`generate`]) and the readers for Abaqus `.inp` ([`inp`]) and
-//! Gmsh `.msh` 4.1 ([`msh`]) files.
+//! Gmsh `.msh` 4.1 ([`msh`]) files; and the reader of a structural shell
+//! mesh (triangles and quads) a formed ply is mapped onto ([`structural`]).
 //!
 //! A mesh is a list of reference node coordinates (mm), 3-node triangles
 //! (node indices, counter-clockwise gives the normal by the right-hand
