@@ -615,7 +615,11 @@ fn calculix_runs_and_uses_the_orientations() {
         let layout = write_calculix(&h, &CalculixOptions::default(), &mut deck).unwrap();
         let mut deck = String::from_utf8(deck).unwrap();
         assert!(!deck.to_ascii_lowercase().contains("nan"));
-        assert!(!deck.lines().any(|l| l.to_ascii_uppercase().starts_with("*STEP")));
+        assert!(
+            !deck
+                .lines()
+                .any(|l| l.to_ascii_uppercase().starts_with("*STEP"))
+        );
         assert!(deck.lines().all(|l| l.len() <= 132));
         deck.push_str(&tension_step(&h, &layout, length, force));
         (h, layout, deck)

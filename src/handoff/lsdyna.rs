@@ -286,15 +286,10 @@ pub fn write_lsdyna(
         writeln!(out, "{line}")?;
     }
     writeln!(out, "*CONTROL_ACCURACY")?;
-    writeln!(out, "$#     OSU       INN    PIDOSU      IACC")?;
-    writeln!(
-        out,
-        "{}{}{}{}",
-        fixed_int(0, 10)?,
-        fixed_int(1, 10)?,
-        fixed_int(0, 10)?,
-        fixed_int(0, 10)?
-    )?;
+    // OSU = 0 (off), INN = 1 (invariant node numbering off); the other
+    // fields keep their defaults.
+    writeln!(out, "$#     OSU       INN")?;
+    writeln!(out, "{}{}", fixed_int(0, 10)?, fixed_int(1, 10)?)?;
 
     let m = &handoff.material;
     writeln!(out, "*MAT_ORTHOTROPIC_ELASTIC")?;

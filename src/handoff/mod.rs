@@ -70,8 +70,8 @@ impl ShellMesh {
         let el = &self.elements[e];
         let mut c = [0.0; 3];
         for &n in &el.nodes {
-            for k in 0..3 {
-                c[k] += self.nodes[n][k];
+            for (c, x) in c.iter_mut().zip(self.nodes[n]) {
+                *c += x;
             }
         }
         c.map(|v| v / el.nodes.len() as f64)
