@@ -250,10 +250,14 @@ pub(crate) fn common_header(handoff: &Handoff) -> Vec<String> {
     lines.push(format!("mesh: {}", handoff.mesh.source));
     lines.push("units: mm, N, MPa, tonne/mm^3, s".to_string());
     let m = &handoff.material;
+    lines.push(
+        "material NCFORM_UD is a PLACEHOLDER to replace (OrthotropicMaterial, a cured UD \
+         carbon/epoxy): the forming law says nothing of the cured part"
+            .to_string(),
+    );
     lines.push(format!(
-        "material NCFORM_UD is a PLACEHOLDER to replace: a cured UD carbon/epoxy \
-         (E1 {} MPa, E2 = E3 {} MPa, nu12 = nu13 {}, nu23 {}, G12 = G13 {} MPa, \
-         G23 {} MPa, density {} t/mm^3); the forming law says nothing of the cured part",
+        "  E1 {:.1} MPa, E2 = E3 {:.1} MPa, nu12 = nu13 {}, nu23 {}, G12 = G13 {:.1} MPa, \
+         G23 {:.1} MPa, density {:e} t/mm^3",
         m.e1, m.e2, m.nu12, m.nu23, m.g12, m.g23, m.density
     ));
     lines.push(
