@@ -13,6 +13,7 @@
 
 pub mod abaqus;
 pub mod calculix;
+mod common;
 pub mod lsdyna;
 pub mod map;
 pub mod run;
