@@ -4,6 +4,7 @@
 //! [`crate::report::prepare`]) and the `material` subcommands.
 
 pub mod check;
+pub mod export;
 pub mod fit;
 pub mod material_check;
 pub mod material_curves;

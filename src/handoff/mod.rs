@@ -14,6 +14,7 @@
 pub mod abaqus;
 pub mod calculix;
 mod common;
+pub mod export;
 pub mod lsdyna;
 pub mod map;
 pub mod run;

@@ -10,6 +10,9 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use ncform::cli::check::check_command;
+use ncform::cli::export::{ExportCommandError, export_command, map_command};
+use ncform::handoff::abaqus::AbaqusElement;
+use ncform::handoff::export::{Format, HandoffOptions};
 use ncform::cli::fit::fit_command;
 use ncform::cli::run::run_command;
 use ncform::cli::{material_check, material_curves, material_eval};
@@ -73,11 +76,150 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Hand a formed part on to structural analysis: the formed plies of a
+    /// forming run's folder (their mesh and per-element fibre directions;
+    /// a stack's other plies mapped onto the first's mesh) as an Abaqus,
+    /// LS-DYNA or CalculiX deck whose orientations the code honours
+    /// (docs/export.md). Exit: 0 written, 1 bad input, 5 not written.
+    Export {
+        /// The run folder (written by `ncform run` on a forming case).
+        run: PathBuf,
+        /// The target format.
+        #[arg(long, value_enum)]
+        format: FormatArg,
+        /// The deck to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// A ply by name or number from 1, bottom to top; repeat for a
+        /// stack (default: every ply).
+        #[arg(long = "ply")]
+        plies: Vec<String>,
+        /// The state (the NNNN of the run's vtu/<ply>_NNNN.vtu; default:
+        /// the last).
+        #[arg(long)]
+        state: Option<usize>,
+        /// Export the last converged state of a run that did not finish
+        /// (the header says so).
+        #[arg(long)]
+        incomplete: bool,
+        /// Abaqus elements: shell (S3R/S4R, Standard and Explicit) or
+        /// membrane (M3D3; distribution orientations: Standard only).
+        #[arg(long, value_enum, default_value = "shell")]
+        element: ElementArg,
+        /// Distance within which a stack's other plies are mapped onto the
+        /// first's mesh [mm].
+        #[arg(long, default_value_t = ncform::handoff::map::DEFAULT_TOLERANCE)]
+        tolerance: f64,
+    },
+    /// Map the formed plies of a forming run onto your structural mesh (an
+    /// Abaqus .inp of S3/S3R/S4/S4R/M3D3/M3D4 elements, its labels kept):
+    /// per element the fibre direction averaged over its area (orientation
+    /// tensor), written as a deck with orientations, and <out>.map.csv;
+    /// elements with no ply within the tolerance get none and are counted
+    /// on stderr (docs/export.md). Exit: 0 written, 1 bad input, 5 not
+    /// written.
+    Map {
+        /// The run folder.
+        run: PathBuf,
+        /// The structural mesh (Abaqus .inp).
+        #[arg(long)]
+        onto: PathBuf,
+        /// The target format.
+        #[arg(long, value_enum)]
+        format: FormatArg,
+        /// The deck to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// A ply by name or number from 1; repeat for several (default:
+        /// every ply).
+        #[arg(long = "ply")]
+        plies: Vec<String>,
+        /// The state (default: the last).
+        #[arg(long)]
+        state: Option<usize>,
+        /// Map the last converged state of a run that did not finish.
+        #[arg(long)]
+        incomplete: bool,
+        /// Largest distance from a structural element to the ply [mm].
+        #[arg(long, default_value_t = ncform::handoff::map::DEFAULT_TOLERANCE)]
+        tolerance: f64,
+    },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
         #[command(subcommand)]
         command: MaterialCommand,
     },
+}
+
+/// `--format`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FormatArg {
+    /// Abaqus input deck.
+    Abaqus,
+    /// LS-DYNA keyword deck.
+    #[value(name = "ls-dyna")]
+    LsDyna,
+    /// CalculiX input deck (layered oriented solids).
+    Calculix,
+}
+
+impl From<FormatArg> for Format {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Abaqus => Format::Abaqus,
+            FormatArg::LsDyna => Format::LsDyna,
+            FormatArg::Calculix => Format::Calculix,
+        }
+    }
+}
+
+/// `--element`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ElementArg {
+    /// S3R / S4R.
+    Shell,
+    /// M3D3 / M3D4.
+    Membrane,
+}
+
+/// The hand-off options of `export` and `map`, the tolerance checked.
+fn handoff_options(
+    plies: Vec<String>,
+    state: Option<usize>,
+    incomplete: bool,
+    tolerance: f64,
+) -> Result<HandoffOptions, String> {
+    if !(tolerance.is_finite() && tolerance > 0.0) {
+        return Err(format!(
+            "--tolerance {tolerance}: expected a distance > 0 mm"
+        ));
+    }
+    Ok(HandoffOptions {
+        plies,
+        state,
+        incomplete,
+        map: ncform::handoff::map::MapOptions {
+            tolerance,
+            ..Default::default()
+        },
+    })
+}
+
+/// The exit of `export` or `map`: the line on stdout, or the error on
+/// stderr with 1 (bad input) or 5 (not written).
+fn handoff_exit(result: Result<String, ExportCommandError>) -> ExitCode {
+    match result {
+        Ok(line) => {
+            use std::io::Write as _;
+            // A closed pipe is not a failure: the deck is on disk.
+            let _ = writeln!(io::stdout(), "{line}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(if e.is_input() { 1 } else { 5 })
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -205,6 +347,49 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
             let status =
                 fit_command(&fit, out, quiet, &cancel_on_signals()).map_err(|e| e.to_string())?;
             Ok(exit(status))
+        }
+        Command::Export {
+            run,
+            format,
+            out,
+            plies,
+            state,
+            incomplete,
+            element,
+            tolerance,
+        } => {
+            let options = handoff_options(plies, state, incomplete, tolerance)?;
+            let element = match element {
+                ElementArg::Shell => AbaqusElement::Shell,
+                ElementArg::Membrane => AbaqusElement::Membrane,
+            };
+            Ok(handoff_exit(export_command(
+                &run,
+                format.into(),
+                element,
+                &options,
+                &out,
+            )))
+        }
+        Command::Map {
+            run,
+            onto,
+            format,
+            out,
+            plies,
+            state,
+            incomplete,
+            tolerance,
+        } => {
+            let options = handoff_options(plies, state, incomplete, tolerance)?;
+            Ok(handoff_exit(
+                map_command(&run, &onto, format.into(), &options, &out).map(|(line, warnings)| {
+                    for w in warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    line
+                }),
+            ))
         }
         Command::Check { case } => {
             let status = check_command(&case).map_err(|e| e.to_string())?;

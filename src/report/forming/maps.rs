@@ -11,7 +11,11 @@ use super::history::status_line;
 use super::readout::Readout;
 use crate::case::forming::{FormingCase, MapView};
 use crate::case::forming_model::FormingModel;
-use crate::post::contour::{ContourMap, write_contour_png_viewed};
+use crate::post::contour::{
+    CATEGORY_COLOURS, Category, ContourMap, LabelledPolyline, MapOverlay,
+    write_contour_png_overlaid, write_contour_png_viewed,
+};
+use crate::post::defects::{DEFECT_CLASSES, ElementDefects};
 use crate::post::csv::write_csv;
 use crate::post::fields::ElementFields;
 use crate::post::forming::StrainMeasures;
@@ -212,5 +216,133 @@ pub fn write_maps(
     };
     files.write(paths.2, |p| {
         write_contour_png_viewed(p, &[map], (900, 720), case.camera)
+    });
+}
+
+/// The outlines of the tools at `u`, projected on the blank plane: the
+/// boundary loops of each tool's drawing (a punch's rim, a die's opening
+/// and outer edge), labelled with the tool's name.
+pub fn tool_outlines(built: &FormingModel, u: &[f64]) -> Vec<LabelledPolyline> {
+    let mut outlines = Vec::new();
+    for tool in &built.tools {
+        let shift = u[tool.dof] * tool.direction;
+        let drawing = &tool.drawing;
+        for (k, boundary) in crate::post::forming::boundary_loops(&drawing.triangles)
+            .iter()
+            .enumerate()
+        {
+            outlines.push(LabelledPolyline {
+                label: if k == 0 {
+                    tool.spec.name.clone()
+                } else {
+                    format!("{} ({})", tool.spec.name, k + 1)
+                },
+                points: boundary
+                    .iter()
+                    .map(|&n| {
+                        let v = drawing.vertices[n];
+                        [v.x + shift.x, v.y + shift.y]
+                    })
+                    .collect(),
+                closed: true,
+            });
+        }
+    }
+    outlines
+}
+
+/// `maps/<ply>-defects_NNNN.png`: the defect class of every element of
+/// ply `p` (none, wrinkled, gapping, waviness risk; `docs/cases.md`,
+/// "Defect indicators") beside the gap to the tool and the largest
+/// principal curvature, as `case.camera` sees the ply, with the tools'
+/// outlines; recorded in `files`.
+pub fn write_defect_maps(
+    (case, built, p): (&FormingCase, &FormingModel, usize),
+    u: &[f64],
+    defects: &[ElementDefects],
+    path: &Path,
+    caption: &str,
+    files: &mut Outputs,
+) {
+    let ply = &built.plies[p];
+    let points: Vec<[f64; 2]> = ply
+        .deformed_positions(u)
+        .iter()
+        .map(|x| [x[0], x[1]])
+        .collect();
+    let outlines = tool_outlines(built, u);
+    let view = match case.camera {
+        MapView::Below => "from below",
+        MapView::Above => "from above",
+    };
+    let classes: Vec<f64> = defects.iter().map(|d| f64::from(d.class())).collect();
+    let categories: Vec<Category> = DEFECT_CLASSES
+        .iter()
+        .zip(CATEGORY_COLOURS)
+        .map(|(name, colour)| Category {
+            name: (*name).to_string(),
+            colour,
+        })
+        .collect();
+    let class_map = ContourMap {
+        title: format!("defects: formed ply, {view}, {caption}"),
+        points: &points,
+        triangles: &ply.mesh.triangles,
+        values: &classes,
+        label: "defect".into(),
+        range: None,
+    };
+    files.write(path, |p| {
+        write_contour_png_overlaid(
+            p,
+            &[class_map],
+            (1000, 720),
+            case.camera,
+            &MapOverlay {
+                outlines: &outlines,
+                categories: Some(&categories),
+            },
+        )
+    });
+    let gaps: Vec<f64> = defects
+        .iter()
+        .map(|d| d.tool_gap.unwrap_or(f64::NAN))
+        .collect();
+    let curvatures: Vec<f64> = defects.iter().map(ElementDefects::max_curvature).collect();
+    let thresholds = case.defects.thresholds(&case.plies[p]);
+    let maps = [
+        ContourMap {
+            title: format!("gap to the tool: {view}, {caption}"),
+            points: &points,
+            triangles: &ply.mesh.triangles,
+            values: &gaps,
+            label: format!("gap [mm] (threshold {})", thresholds.tool_gap),
+            range: Some((0.0, 4.0 * thresholds.tool_gap)),
+        },
+        ContourMap {
+            title: format!("largest curvature: {view}, {caption}"),
+            points: &points,
+            triangles: &ply.mesh.triangles,
+            values: &curvatures,
+            label: format!("|κ| [1/mm] (threshold {})", thresholds.curvature),
+            range: Some((0.0, 4.0 * thresholds.curvature)),
+        },
+    ];
+    let wrinkle_path = path.with_file_name(
+        path.file_name()
+            .map(|f| f.to_string_lossy().replace("-defects_", "-wrinkle-indicators_"))
+            .unwrap_or_default(),
+    );
+    files.write(&wrinkle_path, |p| {
+        write_contour_png_overlaid(
+            p,
+            &maps,
+            (2000, 720),
+            case.camera,
+            &MapOverlay {
+                outlines: &outlines,
+                categories: None,
+            },
+        )
     });
 }

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::maps::write_maps;
+use super::maps::{write_defect_maps, write_maps};
 use super::readout::{DicColumns, dic_measures};
 use crate::case::forming::FormingCase;
 use crate::case::forming_model::{BuiltTool, FormingModel};
@@ -355,6 +355,13 @@ pub(super) fn write_ply_state(
             caption,
             files,
         );
+        let stem = map_paths
+            .2
+            .file_name()
+            .map(|f| f.to_string_lossy().replace("-modes_", "-defects_"))
+            .unwrap_or_default();
+        let defects_path = map_paths.2.with_file_name(stem);
+        write_defect_maps((case, built, p), u, &hand_off.defects, &defects_path, caption, files);
     }
     PlyState {
         areas: Some(crate::post::forming::mode_areas(&modes, &areas)),
@@ -469,7 +476,7 @@ const DEFECTS_NOTE: &str = "tool_gap [mm]: mid-surface to the nearest tool actin
 struct HandOffColumns {
     thresholds: DefectThresholds,
     current_areas: Vec<f64>,
-    defects: Vec<ElementDefects>,
+    pub(super) defects: Vec<ElementDefects>,
     vectors: [Vec<[f64; 3]>; 4],
     scalars: Vec<(&'static str, Vec<f64>)>,
     ints: Vec<(&'static str, Vec<i32>)>,
