@@ -6,8 +6,8 @@
 //! `*SOLID SECTION` (and composite shell sections only for S8R/S6
 //! elements), so the writer builds the laminate explicitly: every mesh node
 //! gets one node per ply interface, `x + z_i m` with `m` the node's averaged
-//! normal (the mean of the unit normals of the elements around it,
-//! normalised) and `z_i` the interface's height, the plies stacked bottom
+//! normal (the mean of the unit normals of the elements around it that
+//! get solids, normalised; the node orders must agree) and `z_i` the interface's height, the plies stacked bottom
 //! to top with their thicknesses and the stack's mid-surface on the mesh
 //! (`z_0 = −T/2`). Ply `k` covering element `e` becomes a `C3D6` wedge
 //! (triangles) or a `C3D8` brick (quads, not split) between interfaces `k`
@@ -29,7 +29,7 @@
 use super::common::{
     Frames, check, comment_lines, common_header, frames, invalid, real, safe_names,
 };
-use super::{Handoff, normalized};
+use super::{Handoff, dot, normalized};
 use std::io::{self, Write};
 
 /// Options of [`write_calculix`].
@@ -85,8 +85,9 @@ const LABEL_MAX: u64 = i32::MAX as u64;
 /// # Errors
 /// `InvalidInput` for an inconsistent hand-off (labels, node indices,
 /// thicknesses, fibre lists; more than 64 plies), a node whose elements'
-/// normals cancel, or labels beyond CalculiX's 32-bit range; otherwise the
-/// errors of `out`.
+/// normals cancel or an element whose normal is opposite to its
+/// neighbours' (inconsistent node order: its solids would be inverted), or
+/// labels beyond CalculiX's 32-bit range; otherwise the errors of `out`.
 pub fn write_calculix(
     handoff: &Handoff,
     options: &CalculixOptions,
@@ -144,26 +145,51 @@ pub fn write_calculix(
             }
         }
     }
-    // Averaged nodal normals over the elements with a normal.
+    // Averaged nodal normals over the elements that get solids.
+    let extruded: Vec<bool> = (0..mesh.elements.len())
+        .map(|e| solids.iter().any(|s| s[e].is_some()))
+        .collect();
     let mut sums = vec![[0.0f64; 3]; mesh.nodes.len()];
+    let mut counts = vec![0usize; mesh.nodes.len()];
     for (e, el) in mesh.elements.iter().enumerate() {
+        if !extruded[e] {
+            continue;
+        }
         if let Some(n) = mesh.normal(e) {
             for &i in &el.nodes {
                 for c in 0..3 {
                     sums[i][c] += n[c];
                 }
+                counts[i] += 1;
             }
         }
     }
     let mut normals = vec![[0.0; 3]; mesh.nodes.len()];
     for i in 0..mesh.nodes.len() {
         if used.iter().any(|u| u[i]) {
-            normals[i] = normalized(sums[i]).ok_or_else(|| {
-                invalid(format!(
-                    "node {}: the normals of its elements cancel, no extrusion direction",
-                    mesh.node_labels[i]
-                ))
-            })?;
+            let length = dot(sums[i], sums[i]).sqrt();
+            normals[i] = normalized(sums[i])
+                .filter(|_| length > 1e-6 * counts[i] as f64)
+                .ok_or_else(|| {
+                    invalid(format!(
+                        "node {}: the normals of its elements cancel (inconsistent node \
+                         order?), no extrusion direction",
+                        mesh.node_labels[i]
+                    ))
+                })?;
+        }
+    }
+    // Every solid must extrude along its own side: its nodes' normals on
+    // the side of its element normal.
+    for (e, el) in mesh.elements.iter().enumerate() {
+        if let (true, Some(n)) = (extruded[e], mesh.normal(e))
+            && el.nodes.iter().any(|&i| dot(normals[i], n) <= 0.0)
+        {
+            return Err(invalid(format!(
+                "element {}: its normal is opposite to its neighbours' (inconsistent node \
+                 order?), its solids would be inverted",
+                el.label
+            )));
         }
     }
     let nodes: Vec<Vec<Option<u64>>> = used

@@ -282,6 +282,15 @@ pub fn write_lsdyna(
     }
 
     writeln!(out, "*KEYWORD")?;
+    // Comments in ASCII (a `°` or `—` would take more than one column).
+    let header: Vec<String> = header
+        .iter()
+        .map(|l| {
+            l.chars()
+                .map(|c| if c.is_ascii() { c } else { '?' })
+                .collect()
+        })
+        .collect();
     for line in comment_lines("$", &header, 80) {
         writeln!(out, "{line}")?;
     }
