@@ -297,5 +297,8 @@ fn a_lighter_blankholder_leaves_more_wrinkled_flange() {
     falls(runs[0], runs[1]);
     falls(runs[0], runs[2]);
     let ((_, a, da), (_, b, db)) = (runs[1], runs[2]);
-    assert!(b - a <= da + db, "6.8 kg wrinkles more than 1.7 kg: {runs:?}");
+    assert!(
+        b - a <= da + db,
+        "6.8 kg wrinkles more than 1.7 kg: {runs:?}"
+    );
 }

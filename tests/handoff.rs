@@ -139,9 +139,16 @@ fn exported_directions_are_the_formed_ones() {
         ));
         // The sign of a fibre is free: compare as lines.
         let s = dot(a, expected).signum();
-        worst = worst.max((0..3).map(|c| (s * a[c] - expected[c]).abs()).fold(0.0, f64::max));
+        worst = worst.max(
+            (0..3)
+                .map(|c| (s * a[c] - expected[c]).abs())
+                .fold(0.0, f64::max),
+        );
         assert!(dot(a, n).abs() < 1e-6, "{label}: a not tangent");
-        assert!(dot(b, n).abs() < 1e-6 && dot(a, b).abs() < 1e-6, "{label}: b");
+        assert!(
+            dot(b, n).abs() < 1e-6 && dot(a, b).abs() < 1e-6,
+            "{label}: b"
+        );
         turned = turned.max(line_angle(a, a0));
     }
     assert!(worst < 1e-6, "largest component error {worst}");
@@ -228,11 +235,7 @@ fn calculix_runs_the_formed_ply_and_uses_its_orientations() {
             }
         }
     }
-    let elsets: Vec<String> = layout
-        .ply_names
-        .iter()
-        .map(|n| format!("{n}_EL"))
-        .collect();
+    let elsets: Vec<String> = layout.ply_names.iter().map(|n| format!("{n}_EL")).collect();
     step.push_str("*STEP\n*STATIC\n*DLOAD\n");
     for e in &elsets {
         step.push_str(&format!("{e}, GRAV, 9810., 0., 0., -1.\n"));
@@ -250,7 +253,10 @@ fn calculix_runs_the_formed_ply_and_uses_its_orientations() {
             }
             let f: Vec<&str> = l.split(',').map(str::trim).collect();
             if in_distribution && f.len() == 7 && !f[0].is_empty() {
-                format!("{}, {}, {}, {}, {}, {}, {}\n", f[0], f[4], f[5], f[6], f[1], f[2], f[3])
+                format!(
+                    "{}, {}, {}, {}, {}, {}, {}\n",
+                    f[0], f[4], f[5], f[6], f[1], f[2], f[3]
+                )
             } else {
                 format!("{l}\n")
             }
@@ -346,14 +352,27 @@ fn structural_mesh(
                 c[0] + 0.5 * (hi[0] - lo[0]) / n as f64,
                 c[1] + 0.5 * (hi[1] - lo[1]) / n as f64,
             ];
-            let (a, b, cc, d) = (label(i, j), label(i + 1, j), label(i + 1, j + 1), label(i, j + 1));
-            let corners = [grid(i, j), grid(i + 1, j), grid(i + 1, j + 1), grid(i, j + 1)];
+            let (a, b, cc, d) = (
+                label(i, j),
+                label(i + 1, j),
+                label(i + 1, j + 1),
+                label(i, j + 1),
+            );
+            let corners = [
+                grid(i, j),
+                grid(i + 1, j),
+                grid(i + 1, j + 1),
+                grid(i, j + 1),
+            ];
             if centre[0].hypot(centre[1]) < cup_radius {
                 quads.push_str(&format!("{next}, {a}, {b}, {cc}, {d}\n"));
                 polygons.push((next, corners.to_vec()));
                 next += 1;
             } else {
-                tris.push_str(&format!("{next}, {a}, {b}, {cc}\n{}, {a}, {cc}, {d}\n", next + 1));
+                tris.push_str(&format!(
+                    "{next}, {a}, {b}, {cc}\n{}, {a}, {cc}, {d}\n",
+                    next + 1
+                ));
                 polygons.push((next, vec![corners[0], corners[1], corners[2]]));
                 polygons.push((next + 1, vec![corners[0], corners[2], corners[3]]));
                 next += 2;
@@ -366,14 +385,20 @@ fn structural_mesh(
     let base = 900_001;
     for k in 0..9 {
         let x = hi[0] + 10.0 + 5.0 * k as f64;
-        extra_nodes.push_str(&format!("{}, {x}, 0., 20.\n{}, {x}, 5., 20.\n", base + 2 * k, base + 2 * k + 1));
+        extra_nodes.push_str(&format!(
+            "{}, {x}, 0., 20.\n{}, {x}, 5., 20.\n",
+            base + 2 * k,
+            base + 2 * k + 1
+        ));
     }
     for k in 0..8 {
         let (a, b, c) = (base + 2 * k, base + 2 * k + 2, base + 2 * k + 3);
         extra.push_str(&format!("{}, {a}, {b}, {c}\n", 990_001 + k));
     }
     (
-        format!("** structural mesh made by tests/handoff.rs\n{nodes}{extra_nodes}{quads}{tris}{extra}"),
+        format!(
+            "** structural mesh made by tests/handoff.rs\n{nodes}{extra_nodes}{quads}{tris}{extra}"
+        ),
         polygons,
     )
 }
@@ -399,7 +424,11 @@ fn formed_fibre_over(ply: &FormedPly, polygon: &[[f64; 2]]) -> [f64; 3] {
             let ccw = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1])
                 - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1])
                 > 0.0;
-            let v = if ccw { v.to_vec() } else { vec![v[0], v[2], v[1]] };
+            let v = if ccw {
+                v.to_vec()
+            } else {
+                vec![v[0], v[2], v[1]]
+            };
             inside(&v, p)
         })
     };
@@ -412,12 +441,22 @@ fn formed_fibre_over(ply: &FormedPly, polygon: &[[f64; 2]]) -> [f64; 3] {
                 let lerp = |a: [f64; 2], b: [f64; 2], t: f64| {
                     [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
                 };
-                lerp(lerp(polygon[0], polygon[1], u), lerp(polygon[3], polygon[2], u), w)
+                lerp(
+                    lerp(polygon[0], polygon[1], u),
+                    lerp(polygon[3], polygon[2], u),
+                    w,
+                )
             } else {
                 // The unit square folded onto the triangle (uniform in area).
-                let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
+                let (u, w) = if u + w > 1.0 {
+                    (1.0 - u, 1.0 - w)
+                } else {
+                    (u, w)
+                };
                 [0, 1].map(|k| {
-                    polygon[0][k] + u * (polygon[1][k] - polygon[0][k]) + w * (polygon[2][k] - polygon[0][k])
+                    polygon[0][k]
+                        + u * (polygon[1][k] - polygon[0][k])
+                        + w * (polygon[2][k] - polygon[0][k])
                 })
             };
             if let Some(t) = holding(p) {
@@ -461,17 +500,26 @@ fn map_onto_a_structural_mesh_gives_the_formed_directions() {
     // The labels as written, quads (S4R) and triangles (S3) both there.
     let mut labels: Vec<u64> = mesh.elements.iter().map(|e| e.label).collect();
     labels.sort_unstable();
-    let expected: Vec<u64> = (5001..5001 + on_ply as u64).chain(990_001..990_009).collect();
+    let expected: Vec<u64> = (5001..5001 + on_ply as u64)
+        .chain(990_001..990_009)
+        .collect();
     assert_eq!(labels, expected);
     for kind in ["S4R", "S3"] {
-        assert!(mesh.elements.iter().any(|e| e.abaqus_type == kind), "no {kind}");
+        assert!(
+            mesh.elements.iter().any(|e| e.abaqus_type == kind),
+            "no {kind}"
+        );
     }
     let mut within = 0;
     let mut mapped = 0;
     let mut worst: f64 = 0.0;
     for (e, el) in mesh.elements.iter().enumerate() {
         if el.label >= 990_001 {
-            assert!(mapping.fibre[e].is_none(), "{} off the ply got a direction", el.label);
+            assert!(
+                mapping.fibre[e].is_none(),
+                "{} off the ply got a direction",
+                el.label
+            );
             continue;
         }
         let Some(a) = mapping.fibre[e] else {
@@ -494,7 +542,10 @@ fn map_onto_a_structural_mesh_gives_the_formed_directions() {
     }
     println!("worst {worst:.2}°");
     let share = within as f64 / mapped as f64;
-    println!("map: {within} of {mapped} elements within 3° ({:.1} %)", 100.0 * share);
+    println!(
+        "map: {within} of {mapped} elements within 3° ({:.1} %)",
+        100.0 * share
+    );
     assert!(share >= 0.95, "{within} of {mapped} within 3°");
     let off: Vec<u64> = mapping.unmapped.iter().map(|u| u.label).collect();
     assert_eq!(off, (990_001..990_009).collect::<Vec<u64>>());
@@ -509,7 +560,10 @@ fn bad_hand_off_requests_are_refused_clearly() {
     let empty = dir.path().join("empty");
     fs::create_dir_all(&empty).unwrap();
     let e = formed_handoff(&empty, &HandoffOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("empty/") && e.to_string().contains("cannot read"), "{e}");
+    assert!(
+        e.to_string().contains("empty/") && e.to_string().contains("cannot read"),
+        "{e}"
+    );
     let run = dir.path().join("run");
     coarse_run("hemisphere-0.toml", 12, &run);
     let options = |plies: &[&str], state| HandoffOptions {
@@ -518,7 +572,10 @@ fn bad_hand_off_requests_are_refused_clearly() {
         ..Default::default()
     };
     let e = formed_handoff(&run, &options(&["3"], None)).unwrap_err();
-    assert!(e.to_string().contains("--ply 3") && e.to_string().contains("\"ply\""), "{e}");
+    assert!(
+        e.to_string().contains("--ply 3") && e.to_string().contains("\"ply\""),
+        "{e}"
+    );
     let e = formed_handoff(&run, &options(&["ply"], Some(99))).unwrap_err();
     assert!(e.to_string().contains("--state 99"), "{e}");
     // A folder whose VTU files are gone: no finished state.

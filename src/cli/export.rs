@@ -127,11 +127,9 @@ pub fn map_command(
     let mut report = out.as_os_str().to_owned();
     report.push(".map.csv");
     let report = PathBuf::from(report);
-    write_map_report(&report, &handoff, &mappings).map_err(|source| {
-        ExportCommandError::Write {
-            path: report.clone(),
-            source,
-        }
+    write_map_report(&report, &handoff, &mappings).map_err(|source| ExportCommandError::Write {
+        path: report.clone(),
+        source,
     })?;
     let warnings = off_ply_warnings(&handoff, &mappings, options, &report);
     Ok((summary_line(&handoff, out), warnings))

@@ -165,8 +165,10 @@ pub fn fixed_real(value: f64, width: usize) -> io::Result<String> {
     }
     match best {
         // A form that rounds a small value to zero (or an exponent that
-        // leaves no digits) loses it: keep only what is within 0.1 %.
-        Some((err, s)) if err <= 1e-3 * value.abs() => Ok(format!("{s:>width$}")),
+        // leaves no digits) loses it: keep what is within 0.5 %, the
+        // rounding of three significant digits (`-2.23e-14` in ten
+        // columns).
+        Some((err, s)) if err <= 5e-3 * value.abs() => Ok(format!("{s:>width$}")),
         _ => Err(bad()),
     }
 }

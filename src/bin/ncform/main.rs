@@ -11,11 +11,11 @@ use clap::{Parser, Subcommand};
 
 use ncform::cli::check::check_command;
 use ncform::cli::export::{ExportCommandError, export_command, map_command};
-use ncform::handoff::abaqus::AbaqusElement;
-use ncform::handoff::export::{Format, HandoffOptions};
 use ncform::cli::fit::fit_command;
 use ncform::cli::run::run_command;
 use ncform::cli::{material_check, material_curves, material_eval};
+use ncform::handoff::abaqus::AbaqusElement;
+use ncform::handoff::export::{Format, HandoffOptions};
 use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
 use ncform::report::ExitStatus;

@@ -15,8 +15,8 @@ use crate::post::contour::{
     CATEGORY_COLOURS, Category, ContourMap, LabelledPolyline, MapOverlay,
     write_contour_png_overlaid, write_contour_png_viewed,
 };
-use crate::post::defects::{DEFECT_CLASSES, ElementDefects};
 use crate::post::csv::write_csv;
+use crate::post::defects::{DEFECT_CLASSES, ElementDefects};
 use crate::post::fields::ElementFields;
 use crate::post::forming::StrainMeasures;
 use crate::post::plot::{Series as Outline, write_outlines_png};
@@ -330,7 +330,10 @@ pub fn write_defect_maps(
     ];
     let wrinkle_path = path.with_file_name(
         path.file_name()
-            .map(|f| f.to_string_lossy().replace("-defects_", "-wrinkle-indicators_"))
+            .map(|f| {
+                f.to_string_lossy()
+                    .replace("-defects_", "-wrinkle-indicators_")
+            })
             .unwrap_or_default(),
     );
     files.write(&wrinkle_path, |p| {

@@ -361,7 +361,14 @@ pub(super) fn write_ply_state(
             .map(|f| f.to_string_lossy().replace("-modes_", "-defects_"))
             .unwrap_or_default();
         let defects_path = map_paths.2.with_file_name(stem);
-        write_defect_maps((case, built, p), u, &hand_off.defects, &defects_path, caption, files);
+        write_defect_maps(
+            (case, built, p),
+            u,
+            &hand_off.defects,
+            &defects_path,
+            caption,
+            files,
+        );
     }
     PlyState {
         areas: Some(crate::post::forming::mode_areas(&modes, &areas)),
