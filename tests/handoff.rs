@@ -293,13 +293,16 @@ fn calculix_runs_the_formed_ply_and_uses_its_orientations() {
 /// barycentric weights on the current positions); node labels from 7001
 /// in steps of 3, element labels from 5001. Plus `extra` triangles of a
 /// ring lifted 20 mm off the ply, beyond the blank.
+/// An element's label and its reference polygon on the blank.
+type LabelledPolygon = (u64, Vec<[f64; 2]>);
+
 /// Returns the deck's text and, per element on the ply, its label and its
 /// reference polygon (on the blank).
 fn structural_mesh(
     ply: &FormedPly,
     spacing: f64,
     cup_radius: f64,
-) -> (String, Vec<(u64, Vec<[f64; 2]>)>) {
+) -> (String, Vec<LabelledPolygon>) {
     let locate = |p: [f64; 2]| -> Option<[f64; 3]> {
         for t in &ply.triangles {
             let [a, b, c] = t.map(|n| ply.reference[n]);

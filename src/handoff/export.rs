@@ -56,7 +56,7 @@ pub enum HandoffError {
 }
 
 /// What to hand on and how.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct HandoffOptions {
     /// The plies, by name or number from 1, bottom to top (empty: all of
     /// the run's, in the case's order).
@@ -68,17 +68,6 @@ pub struct HandoffOptions {
     /// How plies are mapped (a stack's plies beyond the first, or every
     /// ply onto a structural mesh).
     pub map: MapOptions,
-}
-
-impl Default for HandoffOptions {
-    fn default() -> Self {
-        Self {
-            plies: Vec::new(),
-            state: None,
-            incomplete: false,
-            map: MapOptions::default(),
-        }
-    }
 }
 
 /// One ply mapped onto the hand-off's mesh.
