@@ -86,10 +86,17 @@ VARIABLE_SIZE = {"summary.json", "status.json", "case.resolved.json"}
 # folder's provenance record; it names the commit, so it differs by design.
 HEAD_ONLY = {"case.resolved.json"}
 
+# Files that only a newer head writes, by pattern: the defect maps of the
+# forming plies (`maps/<ply>-defects_NNNN.png`,
+# `maps/<ply>-wrinkle-indicators_NNNN.png`), new with the defect
+# indicators.
+HEAD_ONLY_FILES = re.compile(r"^maps/.*-(defects|wrinkle-indicators)_\d{4}\.png$")
+
 # Summary keys that only a newer head writes, dropped wherever they occur:
 # `term_steps`, the step each term alone would allow (new with the
-# explicit summary's account of what sets the step).
-HEAD_ONLY_KEYS = {"term_steps"}
+# explicit summary's account of what sets the step); `defects`, the defect
+# areas per ply (new with the defect indicators).
+HEAD_ONLY_KEYS = {"term_steps", "defects"}
 
 # Keys of the resolved case that only a newer head writes, by path:
 # `[[tool]] plies` (the plies a tool touches), new with the key; its
@@ -101,7 +108,16 @@ HEAD_ONLY_PATHS = re.compile(r"^/case/tools\[\d+\]/plies$")
 # beside the merged ones. A head VTU is compared with these arrays taken
 # out; everything else in it must be the same bytes.
 HEAD_ONLY_ARRAYS = re.compile(
-    r'\n *<DataArray [^>]*Name="ply_contact_[a-z_]+\[[^"]*\]"[^>]*>.*?</DataArray>', re.S)
+    r'\n *<DataArray [^>]*Name="(ply_contact_[a-z_]+\[[^"]*\]|' + "|".join((
+        "a0", "b0", "fibre_direction", "transverse_direction", "fibre_angle_deg",
+        "fibre_angle_deviation_deg", "area_ratio", "thickness", "areal_mass", "tool_gap",
+        "curvature_1", "curvature_2", "max_curvature", "membrane_force_1", "membrane_force_2",
+        "fibre_line_force", "gap_width", "element_label", "orientation_valid", "rosette_use",
+        "tension_field", "wrinkled", "gapping", "waviness_risk", "defect_class")) +
+    r')"[^>]*>.*?</DataArray>'
+    # ... and the comment lines that describe them (orientation fields,
+    # defect fields and thresholds).
+    r'|\n<!-- (a0, b0: |tool_gap \[mm\]: |defect thresholds: )[^\n]*-->', re.S)
 
 # Times in seconds and speeds on stdout/stderr ("2.85 s", "31.9 M
 # element-cycles/s").
@@ -284,7 +300,8 @@ def compare_folders(base: Path, head: Path) -> list[str]:
     fa = files(base) if base.exists() else set()
     fb = files(head) if head.exists() else set()
     problems = [f"{f}: only in the base run" for f in sorted(fa - fb)]
-    problems += [f"{f}: only in the head run" for f in sorted(fb - fa) if f not in HEAD_ONLY]
+    problems += [f"{f}: only in the head run" for f in sorted(fb - fa)
+                 if f not in HEAD_ONLY and not HEAD_ONLY_FILES.match(f)]
     for rel in sorted(fa & fb):
         a, b = (base / rel).read_bytes(), (head / rel).read_bytes()
         if rel.endswith(".json"):
@@ -292,7 +309,9 @@ def compare_folders(base: Path, head: Path) -> list[str]:
                 ja, jb = masked(json.loads(a)), masked(json.loads(b))
                 if rel == "status.json" and isinstance(jb, dict) and isinstance(jb.get("files"), list):
                     jb["files"] = [f for f in jb["files"]
-                                   if not (isinstance(f, dict) and f.get("path") in HEAD_ONLY
+                                   if not (isinstance(f, dict)
+                                           and (f.get("path") in HEAD_ONLY
+                                                or HEAD_ONLY_FILES.match(str(f.get("path"))))
                                            and f.get("path") not in fa)]
             except json.JSONDecodeError as e:
                 if a != b:
