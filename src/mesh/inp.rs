@@ -34,6 +34,27 @@ pub fn read_inp(path: &Path) -> Result<Mesh, MeshError> {
 /// The mesh is checked ([`Mesh::check`]); fibres are left empty.
 pub fn parse_inp(text: &str, source: &str) -> Result<Mesh, MeshError> {
     let mut p = Parser::new(source);
+    walk_inp(text, &mut p)?;
+    p.finish()
+}
+
+/// What an `.inp` reader does with the lines [`walk_inp`] hands it.
+pub(crate) trait InpLines {
+    /// The reader's error.
+    type Error;
+    /// The data lines of the last keyword are over.
+    fn finish_record(&mut self) -> Result<(), Self::Error>;
+    /// A keyword line (continuation lines joined) at `line`.
+    fn keyword(&mut self, text: &str, line: usize) -> Result<(), Self::Error>;
+    /// A data line at `line`.
+    fn data(&mut self, text: &str, line: usize) -> Result<(), Self::Error>;
+}
+
+/// Hands the lines of an Abaqus `.inp` text to `reader`: comments (`**`)
+/// and blank lines skipped, a keyword line continued while it ends with a
+/// comma and the next line holds options (`key=value`; data lines never
+/// do), each record finished before the next keyword and at the end.
+pub(crate) fn walk_inp<R: InpLines>(text: &str, reader: &mut R) -> Result<(), R::Error> {
     let lines: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
@@ -47,9 +68,7 @@ pub fn parse_inp(text: &str, source: &str) -> Result<Mesh, MeshError> {
             continue;
         }
         if s.starts_with('*') {
-            p.finish_record()?;
-            // A keyword line continues when it ends with a comma and the
-            // next line holds options (`key=value`; data lines never do).
+            reader.finish_record()?;
             let mut keyword = s.to_string();
             while keyword.ends_with(',')
                 && k < lines.len()
@@ -59,13 +78,12 @@ pub fn parse_inp(text: &str, source: &str) -> Result<Mesh, MeshError> {
                 keyword.push_str(lines[k].1);
                 k += 1;
             }
-            p.keyword(&keyword, line)?;
+            reader.keyword(&keyword, line)?;
         } else {
-            p.data(s, line)?;
+            reader.data(s, line)?;
         }
     }
-    p.finish_record()?;
-    p.finish()
+    reader.finish_record()
 }
 
 /// A comma-separated field and its line.
@@ -574,4 +592,17 @@ fn unquote(s: &str) -> &str {
     s.strip_prefix('"')
         .and_then(|s| s.strip_suffix('"'))
         .unwrap_or(s)
+}
+
+impl InpLines for Parser<'_> {
+    type Error = MeshError;
+    fn finish_record(&mut self) -> Result<(), MeshError> {
+        Parser::finish_record(self)
+    }
+    fn keyword(&mut self, text: &str, line: usize) -> Result<(), MeshError> {
+        Parser::keyword(self, text, line)
+    }
+    fn data(&mut self, text: &str, line: usize) -> Result<(), MeshError> {
+        Parser::data(self, text, line)
+    }
 }

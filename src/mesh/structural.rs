@@ -193,38 +193,8 @@ pub fn read_structural_inp(path: &Path) -> Result<ShellMesh, StructuralMeshError
 /// messages and becomes [`ShellMesh::source`]. See the module
 /// documentation for what is read and what is refused.
 pub fn parse_structural_inp(text: &str, source: &str) -> Result<ShellMesh, StructuralMeshError> {
-    let lines: Vec<(usize, &str)> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .collect();
     let mut p = Parser::new(source);
-    let mut k = 0;
-    while k < lines.len() {
-        let (line, s) = lines[k];
-        k += 1;
-        if s.is_empty() || s.starts_with("**") {
-            continue;
-        }
-        if s.starts_with('*') {
-            p.finish_record()?;
-            // A keyword line continues when it ends with a comma and the
-            // next line holds options (`key=value`; data lines never do).
-            let mut keyword = s.to_string();
-            while keyword.ends_with(',')
-                && k < lines.len()
-                && !lines[k].1.starts_with('*')
-                && lines[k].1.contains('=')
-            {
-                keyword.push_str(lines[k].1);
-                k += 1;
-            }
-            p.keyword(&keyword, line)?;
-        } else {
-            p.data(s, line)?;
-        }
-    }
-    p.finish_record()?;
+    super::inp::walk_inp(text, &mut p)?;
     p.finish()
 }
 
@@ -597,6 +567,19 @@ fn unquote(s: &str) -> &str {
         .unwrap_or(s)
 }
 
+impl super::inp::InpLines for Parser<'_> {
+    type Error = StructuralMeshError;
+    fn finish_record(&mut self) -> Result<(), StructuralMeshError> {
+        Parser::finish_record(self)
+    }
+    fn keyword(&mut self, text: &str, line: usize) -> Result<(), StructuralMeshError> {
+        Parser::keyword(self, text, line)
+    }
+    fn data(&mut self, text: &str, line: usize) -> Result<(), StructuralMeshError> {
+        Parser::data(self, text, line)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -636,3 +619,4 @@ mod tests {
         assert!(e.contains("q.inp:3") && e.contains("second *PART"), "{e}");
     }
 }
+
