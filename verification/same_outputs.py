@@ -100,13 +100,16 @@ HEAD_ONLY_KEYS = {"term_steps", "defects"}
 
 # Keys of the resolved case that only a newer head writes, by path:
 # `[[tool]] plies` (the plies a tool touches), new with the key; its
-# default, every ply, is the model of the base.
-HEAD_ONLY_PATHS = re.compile(r"^/case/tools\[\d+\]/plies$")
+# default, every ply, is the model of the base; `[rosette]` and
+# `[defects]`, new with the orientation fields and defect indicators.
+HEAD_ONLY_PATHS = re.compile(r"^/case/(tools\[\d+\]/plies|rosette|defects)$")
 
 # VTU arrays that only a newer head writes, by name: the per-interface
 # ply-ply contact fields (`ply_contact_<quantity>[<other ply>]`), new
-# beside the merged ones. A head VTU is compared with these arrays taken
-# out; everything else in it must be the same bytes.
+# beside the merged ones, and the orientation and defect fields. The two
+# VTUs are compared with these arrays taken out of both (a base that has
+# some of them writes them as the head does); everything else must be the
+# same bytes.
 HEAD_ONLY_ARRAYS = re.compile(
     r'\n *<DataArray [^>]*Name="(ply_contact_[a-z_]+\[[^"]*\]|' + "|".join((
         "a0", "b0", "fibre_direction", "transverse_direction", "fibre_angle_deg",
@@ -321,7 +324,8 @@ def compare_folders(base: Path, head: Path) -> list[str]:
             if d:
                 problems.append(f"{rel}: {d}")
         elif a != b and not (rel.endswith(".vtu")
-                             and HEAD_ONLY_ARRAYS.sub("", b.decode()) == a.decode()):
+                             and HEAD_ONLY_ARRAYS.sub("", b.decode())
+                             == HEAD_ONLY_ARRAYS.sub("", a.decode())):
             if rel.endswith(".png"):
                 problems.append(f"{rel}: the pictures differ ({len(a)} against {len(b)} bytes)")
             else:

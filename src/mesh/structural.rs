@@ -619,4 +619,3 @@ mod tests {
         assert!(e.contains("q.inp:3") && e.contains("second *PART"), "{e}");
     }
 }
-

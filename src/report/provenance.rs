@@ -231,6 +231,8 @@ fn forming(c: &FormingCase) -> Value {
             "fibre_angle_deg": p.fibre_angle_deg,
             "bending": p.bending,
         })).collect::<Vec<_>>(),
+        "rosette": c.rosette,
+        "defects": c.defects,
         "tools": c.tools.iter().map(|t| json!({
             "name": t.name,
             "shape": format!("{:?}", t.shape),
