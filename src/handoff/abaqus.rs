@@ -18,7 +18,7 @@
 use super::Handoff;
 use super::common::{
     Frames, check, comment_lines, common_header, distinct_layups, frames, invalid, layers_of, real,
-    safe_names,
+    safe_names, write_material,
 };
 use std::io::{self, Write};
 
@@ -289,28 +289,7 @@ pub fn write_abaqus(
         writeln!(out, "3, 0.")?;
     }
 
-    let m = &handoff.material;
-    writeln!(
-        out,
-        "** PLACEHOLDER material: replace with the cured laminate's"
-    )?;
-    writeln!(out, "*MATERIAL, NAME=NCFORM_UD")?;
-    writeln!(out, "*ELASTIC, TYPE=ENGINEERING CONSTANTS")?;
-    writeln!(
-        out,
-        "{}, {}, {}, {}, {}, {}, {}, {}",
-        real(m.e1),
-        real(m.e2),
-        real(m.e2),
-        real(m.nu12),
-        real(m.nu12),
-        real(m.nu23),
-        real(m.g12),
-        real(m.g12)
-    )?;
-    writeln!(out, "{}", real(m.g23))?;
-    writeln!(out, "*DENSITY")?;
-    writeln!(out, "{}", real(m.density))?;
+    write_material(out, &handoff.material, "")?;
 
     for s in &sections {
         if s.layers.len() == 1 {

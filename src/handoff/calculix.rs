@@ -27,7 +27,7 @@
 //! and the step.
 
 use super::common::{
-    Frames, check, comment_lines, common_header, frames, invalid, real, safe_names,
+    Frames, check, comment_lines, common_header, frames, invalid, real, safe_names, write_material,
 };
 use super::{Handoff, dot, normalized};
 use std::io::{self, Write};
@@ -321,28 +321,8 @@ pub fn write_calculix(
         }
     }
 
-    let m = &handoff.material;
-    writeln!(
-        out,
-        "** PLACEHOLDER material: replace with the cured laminate's"
-    )?;
-    writeln!(out, "*MATERIAL, NAME=NCFORM_UD")?;
-    writeln!(out, "*ELASTIC, TYPE=ENGINEERING CONSTANTS")?;
-    writeln!(
-        out,
-        "{}, {}, {}, {}, {}, {}, {}, {}",
-        real(m.e1),
-        real(m.e2),
-        real(m.e2),
-        real(m.nu12),
-        real(m.nu12),
-        real(m.nu23),
-        real(m.g12),
-        real(m.g12)
-    )?;
-    writeln!(out, "{}, 0.", real(m.g23))?;
-    writeln!(out, "*DENSITY")?;
-    writeln!(out, "{}", real(m.density))?;
+    // CalculiX reads a temperature after G23.
+    write_material(out, &handoff.material, ", 0.")?;
     for (k, name) in names.iter().enumerate() {
         if solids[k].iter().any(Option::is_some) {
             writeln!(

@@ -268,3 +268,35 @@ pub(crate) fn common_header(handoff: &Handoff) -> Vec<String> {
     );
     lines
 }
+
+/// The placeholder material `NCFORM_UD` as Abaqus and CalculiX read it:
+/// `*MATERIAL`, `*ELASTIC, TYPE=ENGINEERING CONSTANTS` (`E1, E2, E3, ν12,
+/// ν13, ν23, G12, G13` / `G23` then `after_g23`, CalculiX's temperature)
+/// and `*DENSITY`, after a comment saying it is to be replaced.
+pub(crate) fn write_material(
+    out: &mut impl std::io::Write,
+    m: &super::OrthotropicMaterial,
+    after_g23: &str,
+) -> io::Result<()> {
+    writeln!(
+        out,
+        "** PLACEHOLDER material: replace with the cured laminate's"
+    )?;
+    writeln!(out, "*MATERIAL, NAME=NCFORM_UD")?;
+    writeln!(out, "*ELASTIC, TYPE=ENGINEERING CONSTANTS")?;
+    writeln!(
+        out,
+        "{}, {}, {}, {}, {}, {}, {}, {}",
+        real(m.e1),
+        real(m.e2),
+        real(m.e2),
+        real(m.nu12),
+        real(m.nu12),
+        real(m.nu23),
+        real(m.g12),
+        real(m.g12)
+    )?;
+    writeln!(out, "{}{after_g23}", real(m.g23))?;
+    writeln!(out, "*DENSITY")?;
+    writeln!(out, "{}", real(m.density))
+}

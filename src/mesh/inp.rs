@@ -50,6 +50,35 @@ pub(crate) trait InpLines {
     fn data(&mut self, text: &str, line: usize) -> Result<(), Self::Error>;
 }
 
+/// A keyword line's parts: its name (upper case, inner blanks single) and
+/// its options `KEY` or `KEY=value` (keys upper case, values unquoted), in
+/// order. `text` starts with its `*`.
+pub(crate) fn keyword_parts(text: &str) -> (String, Vec<(String, Option<String>)>) {
+    let mut parts = text[1..].split(',');
+    let name = parts
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+        .to_ascii_uppercase();
+    let mut options: Vec<(String, Option<String>)> = Vec::new();
+    for part in parts {
+        let part = part.trim();
+        if part.is_empty() {
+            continue;
+        }
+        match part.split_once('=') {
+            Some((k, v)) => options.push((
+                k.trim().to_ascii_uppercase(),
+                Some(unquote(v.trim()).to_string()),
+            )),
+            None => options.push((part.to_ascii_uppercase(), None)),
+        }
+    }
+    (name, options)
+}
+
 /// Hands the lines of an Abaqus `.inp` text to `reader`: comments (`**`)
 /// and blank lines skipped, a keyword line continued while it ends with a
 /// comma and the next line holds options (`key=value`; data lines never
@@ -189,28 +218,7 @@ impl<'a> Parser<'a> {
     }
 
     fn keyword(&mut self, text: &str, line: usize) -> Result<(), MeshError> {
-        let mut parts = text[1..].split(',');
-        let name = parts
-            .next()
-            .unwrap_or("")
-            .split_whitespace()
-            .collect::<Vec<_>>()
-            .join(" ")
-            .to_ascii_uppercase();
-        let mut options: Vec<(String, Option<String>)> = Vec::new();
-        for part in parts {
-            let part = part.trim();
-            if part.is_empty() {
-                continue;
-            }
-            match part.split_once('=') {
-                Some((k, v)) => options.push((
-                    k.trim().to_ascii_uppercase(),
-                    Some(unquote(v.trim()).to_string()),
-                )),
-                None => options.push((part.to_ascii_uppercase(), None)),
-            }
-        }
+        let (name, options) = keyword_parts(text);
         let option = |key: &str| {
             options
                 .iter()

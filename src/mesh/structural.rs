@@ -278,28 +278,7 @@ impl<'a> Parser<'a> {
     }
 
     fn keyword(&mut self, text: &str, line: usize) -> Result<(), StructuralMeshError> {
-        let mut parts = text[1..].split(',');
-        let name = parts
-            .next()
-            .unwrap_or("")
-            .split_whitespace()
-            .collect::<Vec<_>>()
-            .join(" ")
-            .to_ascii_uppercase();
-        let mut options: Vec<(String, Option<String>)> = Vec::new();
-        for part in parts {
-            let part = part.trim();
-            if part.is_empty() {
-                continue;
-            }
-            match part.split_once('=') {
-                Some((k, v)) => options.push((
-                    k.trim().to_ascii_uppercase(),
-                    Some(unquote(v.trim()).to_string()),
-                )),
-                None => options.push((part.to_ascii_uppercase(), None)),
-            }
-        }
+        let (name, options) = super::inp::keyword_parts(text);
         let option = |key: &str| {
             options
                 .iter()
@@ -559,12 +538,6 @@ impl<'a> Parser<'a> {
             elements,
         })
     }
-}
-
-fn unquote(s: &str) -> &str {
-    s.strip_prefix('"')
-        .and_then(|s| s.strip_suffix('"'))
-        .unwrap_or(s)
 }
 
 impl super::inp::InpLines for Parser<'_> {
