@@ -586,3 +586,83 @@ fn bad_hand_off_requests_are_refused_clearly() {
     let e = formed_handoff(&run, &options(&[], None)).unwrap_err();
     assert!(e.to_string().contains("no finished state"), "{e}");
 }
+
+/// A stack is handed on as one mesh with a layer per ply: the [0°/90°]
+/// hemisphere's second ply is mapped onto the first's formed mesh, the
+/// Abaqus deck gets a composite section for the elements both plies cover
+/// and a one-ply section where the 90° ply drew in differently (a partial
+/// layup), with one distribution line per element each ply covers; the
+/// plies' fibres stay crossed (median angle between them above 60°: the
+/// two plies are laid at 90° and shear differently, so the check has room
+/// on both sides). The tetrahedron's formed ply goes to LS-DYNA with a
+/// BETA card for every element.
+#[test]
+fn a_stack_and_the_tetrahedron_hand_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("stack");
+    coarse_run("hemisphere-0-90.toml", 12, &run);
+    let (handoff, mappings) = formed_handoff(&run, &HandoffOptions::default()).unwrap();
+    assert_eq!(handoff.layers.len(), 2);
+    assert_eq!(mappings.len(), 1);
+    let covered = |k: usize| {
+        handoff.layers[k]
+            .fibre
+            .iter()
+            .filter(|f| f.is_some())
+            .count()
+    };
+    assert_eq!(covered(0), handoff.mesh.elements.len());
+    assert!(covered(1) > handoff.mesh.elements.len() / 2);
+    let mut deck = Vec::new();
+    write_handoff(
+        &handoff,
+        Format::Abaqus,
+        ncform::handoff::abaqus::AbaqusElement::Shell,
+        &mut deck,
+    )
+    .unwrap();
+    let deck = String::from_utf8(deck).unwrap();
+    assert!(deck.contains("*SHELL SECTION, ELSET=") && deck.contains("COMPOSITE"));
+    let names: Vec<String> = handoff
+        .layers
+        .iter()
+        .map(|l| l.name.to_ascii_uppercase().replace('-', "_"))
+        .collect();
+    for (k, name) in names.iter().enumerate() {
+        assert_eq!(distribution(&deck, name).len(), covered(k), "{name}");
+    }
+    if covered(1) < handoff.mesh.elements.len() {
+        // The partial layup has a section of its own.
+        assert!(deck.matches("*SHELL SECTION").count() >= 2);
+    }
+    let mut angles: Vec<f64> = handoff.layers[0]
+        .fibre
+        .iter()
+        .zip(&handoff.layers[1].fibre)
+        .filter_map(|(a, b)| Some(line_angle((*a)?, (*b)?)))
+        .collect();
+    angles.sort_by(f64::total_cmp);
+    let median = angles[angles.len() / 2];
+    assert!(median > 60.0, "median angle between the plies {median}°");
+
+    let run = dir.path().join("tetrahedron");
+    coarse_run("tetrahedron-0.toml", 24, &run);
+    let (handoff, _) = formed_handoff(&run, &HandoffOptions::default()).unwrap();
+    let mut deck = Vec::new();
+    write_handoff(
+        &handoff,
+        Format::LsDyna,
+        ncform::handoff::abaqus::AbaqusElement::Shell,
+        &mut deck,
+    )
+    .unwrap();
+    let deck = String::from_utf8(deck).unwrap();
+    let cards = deck
+        .lines()
+        .skip_while(|l| !l.starts_with("*ELEMENT_SHELL_BETA"))
+        .skip(1)
+        .take_while(|l| !l.starts_with('*'))
+        .filter(|l| !l.starts_with('$'))
+        .count();
+    assert_eq!(cards, 2 * handoff.mesh.elements.len());
+}
