@@ -221,16 +221,30 @@ pub fn write_maps(
 
 /// The outlines of the tools at `u`, projected on the blank plane: the
 /// boundary loops of each tool's drawing (a punch's rim, a die's opening
-/// and outer edge), labelled with the tool's name.
+/// and outer edge), or, for a closed drawing (a spherical punch), its
+/// silhouette from above (the convex hull of its vertices), labelled with
+/// the tool's name.
 pub fn tool_outlines(built: &FormingModel, u: &[f64]) -> Vec<LabelledPolyline> {
     let mut outlines = Vec::new();
     for tool in &built.tools {
         let shift = u[tool.dof] * tool.direction;
         let drawing = &tool.drawing;
-        for (k, boundary) in crate::post::forming::boundary_loops(&drawing.triangles)
-            .iter()
-            .enumerate()
-        {
+        let loops = crate::post::forming::boundary_loops(&drawing.triangles);
+        if loops.is_empty() {
+            // A closed surface (a sphere, a pyramid's drawing) has no
+            // boundary: its silhouette seen along z, the convex hull.
+            let points: Vec<[f64; 2]> = drawing
+                .vertices
+                .iter()
+                .map(|v| [v.x + shift.x, v.y + shift.y])
+                .collect();
+            outlines.push(LabelledPolyline {
+                label: tool.spec.name.clone(),
+                points: convex_hull(points),
+                closed: true,
+            });
+        }
+        for (k, boundary) in loops.iter().enumerate() {
             outlines.push(LabelledPolyline {
                 label: if k == 0 {
                     tool.spec.name.clone()
@@ -249,6 +263,34 @@ pub fn tool_outlines(built: &FormingModel, u: &[f64]) -> Vec<LabelledPolyline> {
         }
     }
     outlines
+}
+
+/// The convex hull of `points`, counter-clockwise (Andrew's monotone
+/// chain); fewer than three points come back as they are.
+fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    points.retain(|p| p[0].is_finite() && p[1].is_finite());
+    points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let turn = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * points.len());
+    for pass in [points.clone(), points.iter().rev().copied().collect()] {
+        let start = hull.len();
+        for p in pass {
+            while hull.len() >= start + 2
+                && turn(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
 }
 
 /// `maps/<ply>-defects_NNNN.png`: the defect class of every element of
