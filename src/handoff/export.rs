@@ -20,7 +20,7 @@ use super::calculix::{CalculixOptions, write_calculix};
 use super::lsdyna::{LsDynaOptions, write_lsdyna};
 use super::map::{FormedSurface, MapError, MapOptions, MapResult, map_onto};
 use super::run::{FormedPly, RunFolderError, ply_index, read_formed_state, run_plies};
-use super::{Handoff, OrthotropicMaterial};
+use super::{Handoff, Layer, OrthotropicMaterial};
 use crate::mesh::structural::{StructuralMeshError, read_structural_inp};
 
 /// A target format.
@@ -118,6 +118,25 @@ fn map_ply(
     })
 }
 
+/// Each of `plies` mapped onto `mesh`: its layer and its mapping.
+fn map_plies(
+    plies: &[FormedPly],
+    mesh: &super::ShellMesh,
+    options: &MapOptions,
+) -> Result<(Vec<Layer>, Vec<PlyMapping>), HandoffError> {
+    let mut layers = Vec::new();
+    let mut mappings = Vec::new();
+    for ply in plies {
+        let result = map_ply(ply, mesh, options)?;
+        layers.push(result.to_layer(&ply.name, ply.thickness));
+        mappings.push(PlyMapping {
+            ply: ply.name.clone(),
+            result,
+        });
+    }
+    Ok((layers, mappings))
+}
+
 /// The convention lines every deck's header repeats after the provenance.
 fn mapping_lines(mappings: &[PlyMapping], elements: usize, options: &MapOptions) -> Vec<String> {
     mappings
@@ -149,16 +168,8 @@ pub fn formed_handoff(
     let mut header = state.header();
     let reference = &state.plies[0];
     let (mesh, layer) = reference.shell_mesh(&run.display().to_string());
-    let mut layers = vec![layer];
-    let mut mappings = Vec::new();
-    for ply in &state.plies[1..] {
-        let result = map_ply(ply, &mesh, &options.map)?;
-        layers.push(result.to_layer(&ply.name, ply.thickness));
-        mappings.push(PlyMapping {
-            ply: ply.name.clone(),
-            result,
-        });
-    }
+    let (mapped, mappings) = map_plies(&state.plies[1..], &mesh, &options.map)?;
+    let layers: Vec<Layer> = std::iter::once(layer).chain(mapped).collect();
     if state.plies.len() > 1 {
         header.push(format!(
             "stack: the mesh is ply \"{}\"'s, formed; the other plies are mapped onto it, and an element a ply does not reach has no such layer (a partial layup)",
@@ -198,16 +209,7 @@ pub fn mapped_handoff(
         mesh.nodes.len(),
         mesh.elements.len()
     ));
-    let mut layers = Vec::new();
-    let mut mappings = Vec::new();
-    for ply in &state.plies {
-        let result = map_ply(ply, &mesh, &options.map)?;
-        layers.push(result.to_layer(&ply.name, ply.thickness));
-        mappings.push(PlyMapping {
-            ply: ply.name.clone(),
-            result,
-        });
-    }
+    let (layers, mappings) = map_plies(&state.plies, &mesh, &options.map)?;
     header.extend(mapping_lines(&mappings, mesh.elements.len(), &options.map));
     Ok((
         Handoff {

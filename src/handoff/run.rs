@@ -181,19 +181,6 @@ impl FormedState {
     }
 }
 
-/// A file-name stem from a ply name (as the run writes it).
-fn file_stem(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
 fn read_text(path: &Path) -> Result<String, RunFolderError> {
     fs::read_to_string(path).map_err(|source| RunFolderError::Read {
         path: path.to_path_buf(),
@@ -341,7 +328,7 @@ pub fn read_formed_state(
                     .join(", "),
             });
         };
-        let stem = file_stem(name);
+        let stem = crate::report::forming::file_stem(name);
         let states = written_states(run, &stem)?;
         let Some(&last) = states.last() else {
             return Err(RunFolderError::NoState {

@@ -90,26 +90,12 @@ enum Command {
         /// The deck to write.
         #[arg(long)]
         out: PathBuf,
-        /// A ply by name or number from 1, bottom to top; repeat for a
-        /// stack (default: every ply).
-        #[arg(long = "ply")]
-        plies: Vec<String>,
-        /// The state (the NNNN of the run's vtu/<ply>_NNNN.vtu; default:
-        /// the last).
-        #[arg(long)]
-        state: Option<usize>,
-        /// Export the last converged state of a run that did not finish
-        /// (the header says so).
-        #[arg(long)]
-        incomplete: bool,
         /// Abaqus elements: shell (S3R/S4R, Standard and Explicit) or
         /// membrane (M3D3; distribution orientations: Standard only).
         #[arg(long, value_enum, default_value = "shell")]
         element: ElementArg,
-        /// Distance within which a stack's other plies are mapped onto the
-        /// first's mesh [mm].
-        #[arg(long, default_value_t = ncform::handoff::map::DEFAULT_TOLERANCE)]
-        tolerance: f64,
+        #[command(flatten)]
+        handoff: HandoffArgs,
     },
     /// Map the formed plies of a forming run onto your structural mesh (an
     /// Abaqus .inp of S3/S3R/S4/S4R/M3D3/M3D4 elements, its labels kept):
@@ -130,19 +116,8 @@ enum Command {
         /// The deck to write.
         #[arg(long)]
         out: PathBuf,
-        /// A ply by name or number from 1; repeat for several (default:
-        /// every ply).
-        #[arg(long = "ply")]
-        plies: Vec<String>,
-        /// The state (default: the last).
-        #[arg(long)]
-        state: Option<usize>,
-        /// Map the last converged state of a run that did not finish.
-        #[arg(long)]
-        incomplete: bool,
-        /// Largest distance from a structural element to the ply [mm].
-        #[arg(long, default_value_t = ncform::handoff::map::DEFAULT_TOLERANCE)]
-        tolerance: f64,
+        #[command(flatten)]
+        handoff: HandoffArgs,
     },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
@@ -182,27 +157,48 @@ enum ElementArg {
     Membrane,
 }
 
-/// The hand-off options of `export` and `map`, the tolerance checked.
-fn handoff_options(
+/// What `export` and `map` take alike: which plies and state, and how
+/// far a ply may lie from an element.
+#[derive(clap::Args)]
+struct HandoffArgs {
+    /// A ply by name or number from 1, bottom to top; repeat for a stack
+    /// or several plies (default: every ply).
+    #[arg(long = "ply")]
     plies: Vec<String>,
+    /// The state (the NNNN of the run's vtu/<ply>_NNNN.vtu; default: the
+    /// last).
+    #[arg(long)]
     state: Option<usize>,
+    /// Hand on the last converged state of a run that did not finish (the
+    /// header says so).
+    #[arg(long)]
     incomplete: bool,
+    /// Largest distance from an element to a ply that gives it a
+    /// direction [mm] (a stack's other plies onto the first's mesh, or
+    /// every ply onto the structural mesh).
+    #[arg(long, default_value_t = ncform::handoff::map::DEFAULT_TOLERANCE)]
     tolerance: f64,
-) -> Result<HandoffOptions, String> {
-    if !(tolerance.is_finite() && tolerance > 0.0) {
-        return Err(format!(
-            "--tolerance {tolerance}: expected a distance > 0 mm"
-        ));
+}
+
+impl HandoffArgs {
+    /// The hand-off options, the tolerance checked.
+    fn options(self) -> Result<HandoffOptions, String> {
+        let tolerance = self.tolerance;
+        if !(tolerance.is_finite() && tolerance > 0.0) {
+            return Err(format!(
+                "--tolerance {tolerance}: expected a distance > 0 mm"
+            ));
+        }
+        Ok(HandoffOptions {
+            plies: self.plies,
+            state: self.state,
+            incomplete: self.incomplete,
+            map: ncform::handoff::map::MapOptions {
+                tolerance,
+                ..Default::default()
+            },
+        })
     }
-    Ok(HandoffOptions {
-        plies,
-        state,
-        incomplete,
-        map: ncform::handoff::map::MapOptions {
-            tolerance,
-            ..Default::default()
-        },
-    })
 }
 
 /// The exit of `export` or `map`: the line on stdout, or the error on
@@ -352,13 +348,10 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
             run,
             format,
             out,
-            plies,
-            state,
-            incomplete,
             element,
-            tolerance,
+            handoff,
         } => {
-            let options = handoff_options(plies, state, incomplete, tolerance)?;
+            let options = handoff.options()?;
             let element = match element {
                 ElementArg::Shell => AbaqusElement::Shell,
                 ElementArg::Membrane => AbaqusElement::Membrane,
@@ -376,12 +369,9 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
             onto,
             format,
             out,
-            plies,
-            state,
-            incomplete,
-            tolerance,
+            handoff,
         } => {
-            let options = handoff_options(plies, state, incomplete, tolerance)?;
+            let options = handoff.options()?;
             Ok(handoff_exit(
                 map_command(&run, &onto, format.into(), &options, &out).map(|(line, warnings)| {
                     for w in warnings {

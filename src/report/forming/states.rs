@@ -21,8 +21,10 @@ use crate::post::vtu::{Field, FieldData, VtuPiece, write_vtu};
 use crate::report::folder::Outputs;
 use crate::report::{UNITS, io_err};
 
-/// A file-name stem from a ply or tool name.
-pub(super) fn file_stem(name: &str) -> String {
+/// A file-name stem from a ply or tool name: the name with every
+/// character but ASCII letters, digits and `-` replaced by `_` (the run's
+/// `vtu/` and `maps/` files; the hand-off finds them by it).
+pub fn file_stem(name: &str) -> String {
     name.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' {
