@@ -26,3 +26,4 @@ pub mod model;
 pub mod post;
 pub mod report;
 pub mod solver;
+pub mod study;

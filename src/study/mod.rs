@@ -1,0 +1,3 @@
+//! Parameter studies: sweeps over case values (`docs/studies.md`).
+
+pub mod keys;
