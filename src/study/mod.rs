@@ -1,3 +1,4 @@
-//! Parameter studies: sweeps over case values (docs/studies.md).
+//! Parameter studies: sweeps over case values (`docs/studies.md`).
 
+pub mod keys;
 pub mod slurm;
