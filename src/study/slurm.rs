@@ -591,6 +591,22 @@ pub fn point_states(dir: &Path) -> Result<BTreeMap<usize, TaskState>, SlurmError
     Ok(combine_states(&latest, &squeue, &sacct))
 }
 
+/// The points of `points` to submit again on `--resume`: neither in
+/// `complete` (their `status.json` says complete) nor pending or running
+/// in `states` (from [`point_states`]). Points without a recorded
+/// submission count as not running.
+pub fn points_to_resubmit(
+    points: &[usize],
+    complete: &BTreeSet<usize>,
+    states: &BTreeMap<usize, TaskState>,
+) -> Vec<usize> {
+    points
+        .iter()
+        .copied()
+        .filter(|p| !complete.contains(p) && !states.get(p).is_some_and(TaskState::is_active))
+        .collect()
+}
+
 /// `squeue -h -r -j IDS -o "%i %T"`; an empty listing when squeue says the
 /// job ids are invalid (all of them have left its memory).
 fn squeue_output(jobs: &BTreeSet<u64>) -> Result<String, SlurmError> {
@@ -935,6 +951,25 @@ mod tests {
         assert_eq!(m.len(), 9);
         assert_eq!(TaskState::from_slurm("BOGUS"), TaskState::Unknown);
         assert!(TaskState::Pending.is_active() && !TaskState::Cancelled.is_active());
+    }
+
+    #[test]
+    fn resubmit_neither_complete_nor_active() {
+        let complete: BTreeSet<usize> = [0, 4].into();
+        let states: BTreeMap<usize, TaskState> = [
+            (0, TaskState::Completed),
+            (1, TaskState::Running),
+            (2, TaskState::Cancelled),
+            (3, TaskState::Pending),
+            (4, TaskState::Unknown),
+            (5, TaskState::Unknown),
+            (6, TaskState::Completed), // Slurm done, but status.json not complete
+        ]
+        .into();
+        assert_eq!(
+            points_to_resubmit(&[0, 1, 2, 3, 4, 5, 6, 7], &complete, &states),
+            vec![2, 5, 6, 7]
+        );
     }
 
     #[test]
