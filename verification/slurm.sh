@@ -8,8 +8,9 @@
 #    loopback, config written here, nothing in /etc touched),
 # 2. takes the ncform binary from --ncform PATH or target/release/ncform
 #    (builds nothing),
-# 3. runs a small sweep through `ncform sweep ... --slurm`, cancels one array
-#    task early (scancel JOBID_TASK), waits, resumes with
+# 3. runs a small sweep through `ncform sweep ... --slurm` (submitted held),
+#    cancels its last array task (scancel JOBID_TASK), releases it, waits,
+#    resumes with
 #    `ncform sweep DIR --resume --slurm`, waits, `--status`, `collect`,
 # 4. runs the same sweep locally (--jobs 1) and compares each point's final
 #    force (1e-9 relative) and that every point is complete,
@@ -291,7 +292,10 @@ wait_jobs() { # wait_jobs IDS TIMEOUT: until squeue lists none of them
 
 t_slurm=$SECONDS
 set +e
-"$ncform" sweep "$sweep" --out "$dir" --slurm --max-parallel 1 >"$log.submit" 2>&1
+# Submitted held (--hold), so that the last task is surely still pending when
+# it is cancelled (a coarse point takes well under a second); then released.
+"$ncform" sweep "$sweep" --out "$dir" --slurm --max-parallel 1 --sbatch-arg=--hold \
+    >"$log.submit" 2>&1
 rc=$?
 set -e
 cat "$log.submit"
@@ -312,6 +316,7 @@ if scancel "${job}_${last}"; then
 else
     check scancel 0 "scancel ${job}_${last} failed"
 fi
+scontrol release "$job" || true
 if wait_jobs "$job" 900; then
     check first-pass 1 "job $job left the queue after $((SECONDS - t_slurm)) s"
 else
@@ -341,6 +346,7 @@ if [ "$(submissions "$dir" | wc -l)" -eq 2 ] && [ "$points2" = "$last_points" ];
 else
     check resume-points 0 "resubmitted: $(submissions "$dir" | tail -n +2 | tr '\n' ';'), cancelled: $last_points"
 fi
+scontrol release "$job2" 2>/dev/null || true # in case --resume reused --hold
 if wait_jobs "$job2" 900; then
     check second-pass 1 "job $job2 left the queue"
 else
