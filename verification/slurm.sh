@@ -25,11 +25,12 @@
 #   JobAcctGatherType=jobacct_gather/none: no cgroup plugin is needed to run
 #   or track jobs, so slurmd works without systemd or a delegated cgroup tree;
 # - cgroup.conf beside slurm.conf with CgroupPlugin=autodetect and
-#   IgnoreSystemd=yes (22.05 has no CgroupPlugin=disabled): on a cgroup v2
-#   host without systemd, slurmd's cgroup/v2 plugin would otherwise ask
-#   systemd (dbus) for its scope and fail. On a cgroup v1 (hybrid) host, as
-#   where this was written, slurmd loads no cgroup plugin with the plugins
-#   above and runs without cgroup.conf too;
+#   IgnoreSystemd=yes (22.05 has no CgroupPlugin=disabled; IgnoreSystemd is
+#   its documented option for cgroup v2 without systemd): meant for a cgroup
+#   v2 host, where slurmd's cgroup/v2 plugin would otherwise ask systemd
+#   (dbus) for its scope. Not exercised here: this host mounts cgroup v1
+#   (hybrid), and with the plugins above slurmd loads no cgroup plugin and
+#   runs without any cgroup.conf as well;
 # - AuthType=auth/munge with AuthInfo=socket=<temp>/munge.socket: munged runs
 #   from the temporary folder, not from /run/munge;
 # - AccountingStorageType=accounting_storage/none: no slurmdbd, so `sacct`
