@@ -10,3 +10,4 @@ pub mod material_check;
 pub mod material_curves;
 pub mod material_eval;
 pub mod run;
+pub mod sweep;

@@ -137,6 +137,11 @@ pub struct Panel {
     pub series: Vec<Series>,
 }
 
+/// The `i`-th colour of the plots' palette (repeating after ten).
+pub(crate) fn palette(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
 const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),

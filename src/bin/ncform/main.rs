@@ -13,6 +13,9 @@ use ncform::cli::check::check_command;
 use ncform::cli::export::{ExportCommandError, export_command, map_command};
 use ncform::cli::fit::fit_command;
 use ncform::cli::run::run_command;
+use ncform::cli::sweep::{
+    SweepAction, collect_command, parse_points, slurm_options, sweep_command,
+};
 use ncform::cli::{material_check, material_curves, material_eval};
 use ncform::handoff::abaqus::AbaqusElement;
 use ncform::handoff::export::{Format, HandoffOptions};
@@ -20,6 +23,7 @@ use ncform::material::MaterialSpec;
 use ncform::material::params::{DEFAULT_SET, NAMED_SETS};
 use ncform::report::ExitStatus;
 use ncform::solver::CancelToken;
+use ncform::study::RunOptions;
 
 /// Forming simulation of dry UD non-crimp fabrics (Schäfer et al. 2024 law).
 /// Units: mm, N, MPa, tonne/mm³, s.
@@ -118,6 +122,82 @@ enum Command {
         out: PathBuf,
         #[command(flatten)]
         handoff: HandoffArgs,
+    },
+    /// A parameter study: every point of a sweep file's design (grid,
+    /// one-at-a-time, lhs, monte-carlo, sobol, morris) in a folder of its
+    /// own with the exact case it runs, run here N at a time or submitted
+    /// as Slurm job arrays; resumable after Ctrl-C, SIGTERM or SIGKILL
+    /// (docs/studies.md). `ncform sweep SWEEP.toml --out DIR` starts;
+    /// `ncform sweep DIR --resume` runs what is not complete; `ncform sweep
+    /// DIR --status` tells. Exit: 0 every point complete (or submitted), 1
+    /// bad input, 3 a point failed, 4 interrupted.
+    Sweep {
+        /// The sweep file (TOML), or with --resume, --status or --points
+        /// the sweep folder.
+        target: PathBuf,
+        /// The sweep folder to make (a new sweep).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Run the points of the sweep folder that are not complete.
+        #[arg(long)]
+        resume: bool,
+        /// Print what is complete, failed, running, queued, pending.
+        #[arg(long, conflicts_with_all = ["resume", "out", "points"])]
+        status: bool,
+        /// Run these points of the sweep folder here, one after another
+        /// (what a Slurm task runs): 3,4,5 or 3-7.
+        #[arg(long)]
+        points: Option<String>,
+        /// Points run at once (default: one per core).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Threads of each point's run (default: the cores shared among
+        /// the jobs).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Rerun complete points whose inputs or binary changed (else a
+        /// resume refuses them).
+        #[arg(long)]
+        rerun_changed: bool,
+        /// On a resume, leave failed points failed (else they are rerun).
+        #[arg(long)]
+        skip_failed: bool,
+        /// No progress line.
+        #[arg(long)]
+        quiet: bool,
+        /// Submit the points as Slurm job arrays instead of running them
+        /// here.
+        #[arg(long)]
+        slurm: bool,
+        /// Slurm partition.
+        #[arg(long, requires = "slurm")]
+        partition: Option<String>,
+        /// Slurm time limit of a task (e.g. 01:00:00).
+        #[arg(long, requires = "slurm")]
+        time: Option<String>,
+        /// Array tasks running at once (--array=0-N%M).
+        #[arg(long, requires = "slurm")]
+        max_parallel: Option<usize>,
+        /// Points run one after another by each array task.
+        #[arg(long, default_value_t = 1, requires = "slurm")]
+        points_per_task: usize,
+        /// CPUs of each task (the run's threads).
+        #[arg(long, default_value_t = 1, requires = "slurm")]
+        cpus_per_task: usize,
+        /// Any other sbatch option, as one argument (repeat), e.g.
+        /// --sbatch-arg=--mem=2G.
+        #[arg(long = "sbatch-arg", requires = "slurm", allow_hyphen_values = true)]
+        sbatch_args: Vec<String>,
+    },
+    /// Gather a sweep's results: DIR/results.csv (one row per point: the
+    /// varied keys, status, the case's scalar results, wall time, the
+    /// sweep file's responses, feasibility), plots of each result against
+    /// each factor (and a map for a two-factor grid) in DIR/plots, and
+    /// for a Sobol' or Morris design DIR/sensitivity.json
+    /// (docs/studies.md). Exit: 0 written, 1 bad input.
+    Collect {
+        /// The sweep folder.
+        dir: PathBuf,
     },
     /// The membrane law at material points: evaluation, curves, parameter sets.
     Material {
@@ -289,6 +369,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// Sizes the thread pools that a run makes for itself (the explicit
+/// solver's) to the sweep's share per point, unless RAYON_NUM_THREADS is
+/// set: a sweep of N jobs then does not run N pools of every core.
+fn set_default_threads(threads: usize) {
+    if std::env::var_os("RAYON_NUM_THREADS").is_none() {
+        // SAFETY: set before any thread of this process is started (the
+        // sweep's workers and pools start after this call).
+        unsafe { std::env::set_var("RAYON_NUM_THREADS", threads.to_string()) };
+    }
+}
+
 /// A file-size limit (`ulimit -f`) makes a write that goes past it fail
 /// with EFBIG — an output not written, exit code 5 — instead of SIGXFSZ
 /// killing the process with `status.json` still saying `running`.
@@ -381,6 +472,63 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 }),
             ))
         }
+        Command::Sweep {
+            target,
+            out,
+            resume,
+            status,
+            points,
+            jobs,
+            threads,
+            rerun_changed,
+            skip_failed,
+            quiet,
+            slurm,
+            partition,
+            time,
+            max_parallel,
+            points_per_task,
+            cpus_per_task,
+            sbatch_args,
+        } => {
+            let action = match (status, resume, points, out) {
+                (true, ..) => SweepAction::Status(target),
+                (false, _, Some(list), None) => SweepAction::Points(target, parse_points(&list)?),
+                (false, true, None, None) => SweepAction::Resume(target),
+                (false, false, None, Some(out)) => SweepAction::Start { sweep: target, out },
+                (false, false, None, None) => {
+                    return Err("ncform sweep: give --out DIR for a sweep file, or --resume / --status / --points for a sweep folder".into());
+                }
+                _ => {
+                    return Err("ncform sweep: --out starts a new sweep from a sweep file; --resume and --points take the sweep folder instead".into());
+                }
+            };
+            let options = RunOptions {
+                jobs,
+                threads,
+                rerun_changed,
+                skip_failed,
+                quiet,
+                slurm: slurm.then(|| {
+                    slurm_options(
+                        partition,
+                        time,
+                        max_parallel,
+                        points_per_task,
+                        cpus_per_task,
+                        sbatch_args,
+                    )
+                }),
+            };
+            if let (Some(0), _) | (_, Some(0)) = (options.jobs, options.threads) {
+                return Err("ncform sweep: --jobs and --threads must be at least 1".into());
+            }
+            let (_, per_point) = ncform::study::jobs_and_threads(&options);
+            set_default_threads(per_point);
+            let status = sweep_command(&action, &options, &cancel_on_signals())?;
+            Ok(exit(status))
+        }
+        Command::Collect { dir } => Ok(exit(collect_command(&dir)?)),
         Command::Check { case } => {
             let status = check_command(&case).map_err(|e| e.to_string())?;
             Ok(exit(status))

@@ -1,0 +1,338 @@
+//! `ncform sweep` and `ncform collect` as a user runs them: a 3 × 2 grid
+//! on the 45° OAT (W6 s_ini × the end displacement) killed with SIGKILL
+//! half-way, resumed and collected; every point equals a direct `ncform
+//! run` of its case; a SIGTERM'd sweep resumes too; bad keys and values are
+//! refused before anything runs (`docs/studies.md`).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn ncform() -> &'static str {
+    env!("CARGO_BIN_EXE_ncform")
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A 3 × 2 grid on the 45° OAT at element size `h` (coarse, so the test
+/// is quick, but with points long enough to be killed half-way).
+fn sweep_file(dir: &Path, h: f64, extra: &str) -> PathBuf {
+    let case = repo().join("cases/oat45.toml");
+    let text = format!(
+        r#"title = "test grid"
+case = "{}"
+design = "grid"
+[[set]]
+key = "mesh.element_size"
+value = {h}
+[[set]]
+key = "loading.output_displacements"
+value = []
+[[vary]]
+key = "material.w6.s_ini"
+values = [0.012, 0.018, 0.024]
+[[vary]]
+key = "loading.displacement"
+values = [40.0, 60.0]
+{extra}
+"#,
+        case.display()
+    );
+    let path = dir.join("grid.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn status_of(point: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(point.join("status.json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    v["state"].as_str().map(str::to_string)
+}
+
+fn points(dir: &Path) -> Vec<PathBuf> {
+    (0..6).map(|i| dir.join(format!("points/{i:04}"))).collect()
+}
+
+/// Waits until one point is complete and another running, or `limit`.
+fn wait_half_way(dir: &Path, limit: Duration) -> bool {
+    let start = Instant::now();
+    while start.elapsed() < limit {
+        let states: Vec<Option<String>> = points(dir).iter().map(|p| status_of(p)).collect();
+        let complete = states
+            .iter()
+            .filter(|s| s.as_deref() == Some("complete"))
+            .count();
+        let running = states
+            .iter()
+            .filter(|s| s.as_deref() == Some("running"))
+            .count();
+        if complete >= 1 && running >= 1 {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    false
+}
+
+/// The results.csv rows as maps of column → cell.
+fn results(dir: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let text = std::fs::read_to_string(dir.join("results.csv")).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(str::to_string))
+                .collect()
+        })
+        .collect()
+}
+
+/// The last force of a run folder's force_displacement.csv.
+fn final_force(run: &Path) -> f64 {
+    let text = std::fs::read_to_string(run.join("force_displacement.csv")).unwrap();
+    let line = text.lines().rfind(|l| !l.starts_with('#')).unwrap();
+    let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
+    let col = header
+        .split(',')
+        .position(|h| h.trim() == "force [N]")
+        .unwrap();
+    line.split(',').nth(col).unwrap().trim().parse().unwrap()
+}
+
+#[test]
+fn a_killed_sweep_resumes_and_equals_direct_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = sweep_file(tmp.path(), 4.0, "");
+    let dir = tmp.path().join("out");
+    let mut child = Command::new(ncform())
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--quiet",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let half_way = wait_half_way(&dir, Duration::from_secs(120));
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    assert!(half_way, "no point was complete while another ran");
+    let killed: Vec<PathBuf> = points(&dir)
+        .into_iter()
+        .filter(|p| status_of(p).as_deref() == Some("running"))
+        .collect();
+    assert_eq!(killed.len(), 1, "one point was running when killed");
+    // The status names the killed point as running-but-not-running.
+    let out = Command::new(ncform())
+        .args(["sweep", dir.to_str().unwrap(), "--status"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("killed"), "{text}");
+
+    let out = Command::new(ncform())
+        .args([
+            "sweep",
+            dir.to_str().unwrap(),
+            "--resume",
+            "--jobs",
+            "1",
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for p in points(&dir) {
+        assert_eq!(
+            status_of(&p).as_deref(),
+            Some("complete"),
+            "{}",
+            p.display()
+        );
+        // One run folder per point: no `.previous` pile-up, no partial
+        // outputs of the killed attempt.
+        let names: Vec<String> = std::fs::read_dir(&p)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            names
+                .iter()
+                .all(|n| !n.contains("previous") && !n.contains(".tmp-")),
+            "{names:?}"
+        );
+        let run_status = std::fs::read_to_string(p.join("run/status.json")).unwrap();
+        assert!(run_status.contains("\"complete\""), "{run_status}");
+    }
+    // A second resume runs nothing.
+    let out = Command::new(ncform())
+        .args(["sweep", dir.to_str().unwrap(), "--resume", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout).contains("6 complete before, 0 run now"));
+
+    let out = Command::new(ncform())
+        .args(["collect", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = results(&dir);
+    assert_eq!(rows.len(), 6);
+    for (i, row) in rows.iter().enumerate() {
+        // The point's case, run directly, gives the same final force. Both
+        // are the same deterministic quasi-static solve (sequential
+        // factorisation), so 1e-9 relative allows only for the CSV's
+        // printing.
+        let direct = tmp.path().join(format!("direct-{i}"));
+        let case = dir.join(format!("points/{i:04}/case.toml"));
+        let st = Command::new(ncform())
+            .args([
+                "run",
+                case.to_str().unwrap(),
+                "--out",
+                direct.to_str().unwrap(),
+                "--quiet",
+            ])
+            .stdout(Stdio::null())
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let swept: f64 = row["force_final [N]"].parse().unwrap();
+        let f = final_force(&direct);
+        assert!(
+            ((swept - f) / f).abs() < 1e-9,
+            "point {i}: sweep {swept} N, direct {f} N"
+        );
+    }
+    // The force rises with the shear parameter at each end displacement.
+    for d in ["40.0", "60.0"] {
+        let forces: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["loading.displacement"] == d)
+            .map(|r| r["force_final [N]"].parse().unwrap())
+            .collect();
+        assert_eq!(forces.len(), 3);
+        assert!(
+            forces[0] < forces[1] && forces[1] < forces[2],
+            "at {d} mm: {forces:?}"
+        );
+    }
+    assert!(dir.join("plots/force_final_N.png").is_file());
+    assert!(dir.join("plots/force_final_N-map.png").is_file());
+}
+
+#[test]
+fn a_terminated_sweep_marks_its_point_interrupted_and_resumes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = sweep_file(tmp.path(), 4.0, "");
+    let dir = tmp.path().join("out");
+    let child = Command::new(ncform())
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--quiet",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let half_way = wait_half_way(&dir, Duration::from_secs(120));
+    // SIGTERM, as a scheduler's time limit sends first.
+    // SAFETY: kill(2) on the child's pid.
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let out = child.wait_with_output().unwrap();
+    assert!(half_way);
+    let states: Vec<Option<String>> = points(&dir).iter().map(|p| status_of(p)).collect();
+    if out.status.code() == Some(4) {
+        assert!(
+            states.iter().any(|s| s.as_deref() == Some("interrupted")),
+            "{states:?}"
+        );
+        assert!(
+            states.iter().any(Option::is_none),
+            "points after the interrupt are not started: {states:?}"
+        );
+    }
+    let out = Command::new(ncform())
+        .args(["sweep", dir.to_str().unwrap(), "--resume", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for p in points(&dir) {
+        assert_eq!(status_of(&p).as_deref(), Some("complete"));
+    }
+}
+
+#[test]
+fn bad_keys_and_values_are_refused_before_anything_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "[[vary]]\nkey = \"loading.displacment\"\nvalues = [30.0]\n",
+            "displacment",
+        ),
+        (
+            "[[vary]]\nkey = \"material.thickness\"\nvalues = [\"thick\"]\n",
+            "material.thickness",
+        ),
+        (
+            "[[vary]]\nkey = \"material.w6.c_mid\"\nvalues = [-1.0]\n",
+            "c_mid",
+        ),
+        ("[[vary]]\nkey = \"tool[1].mass\"\nvalues = [1.0]\n", "tool"),
+        (
+            "[[set]]\nkey = \"specimen.length\"\nvalue = 50.0\n",
+            "loading.displacement",
+        ),
+    ];
+    for (i, (extra, named)) in cases.iter().enumerate() {
+        let sub = tmp.path().join(format!("c{i}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let sweep = sweep_file(&sub, 10.0, extra);
+        let dir = sub.join("out");
+        let out = Command::new(ncform())
+            .args([
+                "sweep",
+                sweep.to_str().unwrap(),
+                "--out",
+                dir.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains(named), "case {i}: {err}");
+        assert!(!dir.exists(), "case {i}: the folder was made");
+    }
+}
