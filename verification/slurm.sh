@@ -388,13 +388,13 @@ fi
 set +e
 cmp_out="$(python3 - "$dir/results.csv" "$dir2/results.csv" <<'PY'
 import csv, sys
-def read(path):
+def read(path):  # results.csv: "#" comment lines, then a header
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    return rows
+        return list(csv.DictReader(l for l in f if not l.startswith("#")))
 a, b = read(sys.argv[1]), read(sys.argv[2])
-cols = [c for c in (a[0].keys() if a else []) if "force" in c.lower()]
-key = next((c for c in (a[0].keys() if a else []) if c.lower() in ("point", "index", "id")), None)
+fields = list(a[0].keys()) if a else []
+cols = [c for c in fields if "force" in c.lower()]
+key = "point" if "point" in fields else None
 if not a or len(a) != len(b) or not cols:
     print(f"rows {len(a)} vs {len(b)}, force columns {cols}")
     sys.exit(1)
@@ -402,12 +402,18 @@ ka = {r[key] if key else str(i): r for i, r in enumerate(a)}
 kb = {r[key] if key else str(i): r for i, r in enumerate(b)}
 worst, bad = 0.0, []
 for k, ra in ka.items():
-    rb = kb.get(k)
+    rb = kb.get(k) or {}
+    for r, where in ((ra, "slurm"), (rb, "local")):
+        if "status" in r and r["status"] != "complete":
+            bad.append(f"{k}: {where} status {r['status']}")
     for c in cols:
+        x, y = ra.get(c) or "", rb.get(c) or ""
+        if x == "" and y == "":
+            continue  # no value in either (e.g. a force at a displacement not reached)
         try:
-            x, y = float(ra[c]), float(rb[c]) if rb else float("nan")
-        except (TypeError, ValueError):
-            bad.append(f"{k}:{c}")
+            x, y = float(x), float(y)
+        except ValueError:
+            bad.append(f"{k}:{c} {x!r} vs {y!r}")
             continue
         rel = abs(x - y) / max(abs(x), abs(y), 1e-300)
         worst = max(worst, rel) if rel == rel else float("inf")
