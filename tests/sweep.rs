@@ -336,3 +336,150 @@ fn bad_keys_and_values_are_refused_before_anything_runs() {
         assert!(!dir.exists(), "case {i}: the folder was made");
     }
 }
+
+/// The points of a prepared sweep: each point's values by key.
+fn prepared(dir: &Path) -> Vec<std::collections::BTreeMap<String, f64>> {
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap();
+    m["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            p["values"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|kv| (kv[0].as_str().unwrap().to_string(), kv[1].as_f64().unwrap()))
+                .collect()
+        })
+        .collect()
+}
+
+fn prepare(tmp: &Path, name: &str, body: &str) -> PathBuf {
+    let case = repo().join("cases/oat45.toml");
+    let sweep = tmp.join(format!("{name}.toml"));
+    std::fs::write(
+        &sweep,
+        format!(
+            "case = \"{}\"\n{body}\n[[set]]\nkey = \"mesh.element_size\"\nvalue = 10.0\n[[set]]\nkey = \"loading.output_displacements\"\nvalue = []\n",
+            case.display()
+        ),
+    )
+    .unwrap();
+    let dir = tmp.join(name);
+    let out = Command::new(ncform())
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--prepare-only",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{name}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
+}
+
+#[test]
+fn each_design_places_its_points() {
+    let tmp = tempfile::tempdir().unwrap();
+    let two = "[[vary]]\nkey = \"material.w6.s_ini\"\nrange = [0.012, 0.024]\n[[vary]]\nkey = \"material.thickness\"\nrange = [0.2, 0.4]\n";
+    // Latin hypercube: one point per stratum of each factor.
+    let p = prepared(&prepare(
+        tmp.path(),
+        "lhs",
+        &format!("design = \"lhs\"\ncount = 8\n{two}"),
+    ));
+    assert_eq!(p.len(), 8);
+    let mut strata: Vec<usize> = p
+        .iter()
+        .map(|v| ((v["material.thickness"] - 0.2) / 0.2 * 8.0).floor() as usize)
+        .collect();
+    strata.sort_unstable();
+    assert_eq!(strata, (0..8).collect::<Vec<_>>());
+    // Sobol': n (d + 2) points; Morris: r (d + 1).
+    assert_eq!(
+        prepared(&prepare(
+            tmp.path(),
+            "sobol",
+            &format!("design = \"sobol\"\ncount = 4\n{two}")
+        ))
+        .len(),
+        16
+    );
+    assert_eq!(
+        prepared(&prepare(
+            tmp.path(),
+            "morris",
+            &format!("design = \"morris\"\ncount = 3\n{two}")
+        ))
+        .len(),
+        9
+    );
+    // One at a time: the base case, then each factor's other levels.
+    let oat = "design = \"one-at-a-time\"\n[[vary]]\nkey = \"material.w6.s_ini\"\nvalues = [0.012, 0.018, 0.024]\n[[vary]]\nkey = \"material.thickness\"\nvalues = [0.2, 0.3]\n";
+    let p = prepared(&prepare(tmp.path(), "oat", oat));
+    assert_eq!(p.len(), 1 + 2 + 1, "{p:?}");
+    assert_eq!(
+        (p[0]["material.w6.s_ini"], p[0]["material.thickness"]),
+        (0.018, 0.3)
+    );
+}
+
+#[test]
+fn a_fits_correlated_parameters_are_sampled_with_their_correlation() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A fit's report: two parameters, 10 % σ, correlation 0.8.
+    let fit = serde_json::json!({
+        "parameters": {
+            "w6.s_ini": {"value": 0.018, "sigma": 0.0018},
+            "w6.c_ini": {"value": 0.14, "sigma": 0.014},
+        },
+        "parameter_order": ["w6.s_ini", "w6.c_ini"],
+        "correlation": [[1.0, 0.8], [0.8, 1.0]],
+    });
+    std::fs::write(tmp.path().join("fit.json"), fit.to_string()).unwrap();
+    let n = 400;
+    let p = prepared(&prepare(
+        tmp.path(),
+        "robust",
+        &format!("design = \"lhs\"\ncount = {n}\n[correlated]\nfit = \"fit.json\"\n"),
+    ));
+    assert_eq!(p.len(), n);
+    let xs: Vec<f64> = p.iter().map(|v| v["material.w6.s_ini"]).collect();
+    let ys: Vec<f64> = p.iter().map(|v| v["material.w6.c_ini"]).collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (mx, my) = (mean(&xs), mean(&ys));
+    let cov = xs
+        .iter()
+        .zip(&ys)
+        .map(|(x, y)| (x - mx) * (y - my))
+        .sum::<f64>();
+    let vx = xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    let vy = ys.iter().map(|y| (y - my).powi(2)).sum::<f64>();
+    let r = cov / (vx * vy).sqrt();
+    // The sample correlation's standard error is (1 - ρ²)/√n = 0.018 at
+    // n = 400: within 3 of them.
+    assert!(
+        (r - 0.8).abs() < 3.0 * (1.0 - 0.64) / (n as f64).sqrt(),
+        "r = {r}"
+    );
+    // Means within 4 standard errors of the fitted values.
+    assert!(
+        (mx - 0.018).abs() < 4.0 * 0.0018 / (n as f64).sqrt(),
+        "{mx}"
+    );
+    // Each point's parameter file carries its values.
+    let text = std::fs::read_to_string(tmp.path().join("robust/points/0000/params-material.toml"))
+        .unwrap();
+    assert!(
+        text.contains(&format!("s_ini = {}", p[0]["material.w6.s_ini"])),
+        "{text}"
+    );
+}

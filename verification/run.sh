@@ -7,7 +7,8 @@
 # 2. builds the binary: cargo build --release --bin ncform --tests (repo
 #    root; with the tests, so that the dependencies' features are those of
 #    `cargo test --release` and the binary that run built is reused),
-# 3. runs every verification/verify_*.py suite with --ncform PATH; each
+# 3. runs every verification/verify_*.py suite (and slurm.sh, the sweep's
+#    Slurm backend on a one-node Slurm it starts) with --ncform PATH; each
 #    prints PASS/FAIL lines and one "CHECK-SUMMARY passed=N failed=M" line,
 # 4. ends with exactly one line "verification: N passed, N failed" and exits
 #    non-zero if any check failed (the build counts as one check; a suite that
@@ -58,12 +59,19 @@ suites=("$here"/verify_*.py)
 if [ "$full" -eq 1 ]; then
     suites+=("$here"/full_*.py)
 fi
+# The Slurm backend of `ncform sweep` on a one-node Slurm started by the
+# script itself (docs/studies.md, "Slurm"); a bash script, same protocol.
+suites+=("$here/slurm.sh")
 for suite in "${suites[@]}"; do
     name="$(basename "$suite")"
     echo "# running $name"
     log="$(mktemp)"
     set +e
-    "$venv/bin/python" "$suite" --ncform "$bin" 2>&1 | tee "$log"
+    if [[ "$suite" == *.sh ]]; then
+        bash "$suite" --ncform "$bin" 2>&1 | tee "$log"
+    else
+        "$venv/bin/python" "$suite" --ncform "$bin" 2>&1 | tee "$log"
+    fi
     rc=${PIPESTATUS[0]}
     set -e
     summary="$(grep -E '^CHECK-SUMMARY passed=[0-9]+ failed=[0-9]+$' "$log" | tail -n 1 || true)"

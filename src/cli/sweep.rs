@@ -79,7 +79,17 @@ pub fn sweep_command(
                 let (jobs, threads) = study::jobs_and_threads(options);
                 eprintln!("sweep: {jobs} point(s) at once, {threads} thread(s) each");
             }
-            study::start(sweep, out, options, cancel).map_err(|e| e.to_string())?
+            let outcome = study::start(sweep, out, options, cancel).map_err(|e| e.to_string())?;
+            if options.prepare_only {
+                println!(
+                    "{}: {} points prepared; run them with: ncform sweep {} --resume",
+                    outcome.dir.display(),
+                    outcome.points,
+                    outcome.dir.display()
+                );
+                return Ok(ExitStatus::Complete);
+            }
+            outcome
         }
         SweepAction::Resume(dir) => {
             study::resume(dir, options, cancel).map_err(|e| e.to_string())?

@@ -42,6 +42,9 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Submit to Slurm instead of running here.
     pub slurm: Option<slurm::SlurmOptions>,
+    /// Prepare the folder (every point's case checked and written, the
+    /// manifest) and run nothing.
+    pub prepare_only: bool,
 }
 
 /// What a call of [`start`] or [`resume`] did.
@@ -91,6 +94,13 @@ pub fn start(
     let spec = spec::SweepSpec::load(sweep_file)?;
     let (points, sensitivity) = sweep::plan(&spec)?;
     let manifest = sweep::prepare(&spec, &points, sensitivity, out)?;
+    if options.prepare_only {
+        return Ok(SweepOutcome {
+            dir: out.to_path_buf(),
+            points: manifest.points.len(),
+            ..SweepOutcome::default()
+        });
+    }
     go(out, &manifest, options, cancel)
 }
 

@@ -6,8 +6,8 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use super::slurm::{self, SlurmOptions, Submission, TaskState};
-use super::sweep::{Manifest, PointState, SweepError, now, read_status};
+use super::slurm::{self, SlurmOptions, TaskState};
+use super::sweep::{Manifest, PointState, SweepError, read_status};
 
 /// A Slurm error as a sweep error on the folder `dir`.
 fn slurm_err(dir: &Path, e: impl std::fmt::Display) -> SweepError {
@@ -43,7 +43,8 @@ pub fn queued(dir: &Path, manifest: &Manifest) -> Result<BTreeSet<usize>, SweepE
 
 /// Submits the points `todo` of the sweep in `dir` as job arrays (packed
 /// `points_per_task` to a task, split below `MaxArraySize`), records each
-/// submission, and returns the job ids with their point counts.
+/// submission ([`slurm::submit_points`]), and returns the job ids with
+/// their point counts.
 ///
 /// # Errors
 /// A script that cannot be written, or `sbatch` failing.
@@ -57,28 +58,10 @@ pub fn submit_points(
     }
     let exe = std::env::current_exe()
         .map_err(|e| slurm_err(dir, format!("cannot find the ncform binary: {e}")))?;
-    let max = slurm::max_array_size().map_err(|e| slurm_err(dir, e))?;
-    let plan = slurm::plan(todo, options.points_per_task.max(1), max);
-    let first = slurm::load_submissions(dir)
-        .map_err(|e| slurm_err(dir, e))?
-        .len();
-    let mut submitted = Vec::new();
-    for (i, array) in plan.arrays.iter().enumerate() {
-        let k = first + i;
-        let script = slurm::write_array_script(dir, k, array, options, &exe)
-            .map_err(|e| slurm_err(dir, e))?;
-        let job_id = slurm::submit(&script).map_err(|e| slurm_err(dir, e))?;
-        slurm::record_submission(
-            dir,
-            &Submission {
-                job_id,
-                array: k,
-                tasks: array.tasks.clone(),
-                submitted: now(),
-            },
-        )
-        .map_err(|e| slurm_err(dir, e))?;
-        submitted.push((job_id, array.tasks.iter().map(Vec::len).sum()));
-    }
-    Ok(submitted)
+    let submitted =
+        slurm::submit_points(dir, todo, options, &exe).map_err(|e| slurm_err(dir, e))?;
+    Ok(submitted
+        .iter()
+        .map(|s| (s.job_id, s.tasks.iter().map(Vec::len).sum()))
+        .collect())
 }

@@ -165,6 +165,10 @@ enum Command {
         /// No progress line.
         #[arg(long)]
         quiet: bool,
+        /// Only prepare the sweep folder (every point's case checked and
+        /// written, the manifest); run nothing (run later with --resume).
+        #[arg(long, requires = "out")]
+        prepare_only: bool,
         /// Submit the points as Slurm job arrays instead of running them
         /// here.
         #[arg(long)]
@@ -483,6 +487,7 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
             rerun_changed,
             skip_failed,
             quiet,
+            prepare_only,
             slurm,
             partition,
             time,
@@ -509,6 +514,7 @@ fn run(cli: Cli) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 rerun_changed,
                 skip_failed,
                 quiet,
+                prepare_only,
                 slurm: slurm.then(|| {
                     slurm_options(
                         partition,
