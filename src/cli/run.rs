@@ -32,7 +32,7 @@ type LoadText = fn(f64) -> String;
 /// A line on stdout. A closed pipe (`ncform run … | head -1`) is not a
 /// failure of the command: the results are on disk, so the error is
 /// dropped instead of panicking as `println!` does.
-fn say(line: &str) {
+pub(crate) fn say(line: &str) {
     let _ = writeln!(std::io::stdout(), "{line}");
 }
 

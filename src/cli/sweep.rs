@@ -5,7 +5,15 @@
 
 use std::path::{Path, PathBuf};
 
+use super::run::say;
 use crate::report::ExitStatus;
+
+/// A line on stdout, formatted; a closed pipe is not a failure ([`say`]).
+macro_rules! say_fmt {
+    ($($arg:tt)*) => {
+        say(&format!($($arg)*))
+    };
+}
 use crate::solver::CancelToken;
 use crate::study::{self, RunOptions, SweepOutcome, slurm::SlurmOptions};
 
@@ -63,25 +71,25 @@ pub fn sweep_command(
 ) -> Result<ExitStatus, String> {
     let outcome = match action {
         SweepAction::Status(dir) => {
-            print!("{}", study::status(dir).map_err(|e| e.to_string())?);
+            say(study::status(dir).map_err(|e| e.to_string())?.trim_end());
             return Ok(ExitStatus::Complete);
         }
         SweepAction::Points(dir, points) => {
             let batch = study::run_listed(dir, points, cancel).map_err(|e| e.to_string())?;
-            println!(
+            say_fmt!(
                 "points {:?}: {} complete, {} failed, {} interrupted",
                 points, batch.complete, batch.failed, batch.interrupted
             );
             return Ok(batch_exit(&batch));
         }
         SweepAction::Start { sweep, out } => {
-            if options.slurm.is_none() && !options.quiet {
+            if options.slurm.is_none() && !options.quiet && !options.prepare_only {
                 let (jobs, threads) = study::jobs_and_threads(options);
                 eprintln!("sweep: {jobs} point(s) at once, {threads} thread(s) each");
             }
             let outcome = study::start(sweep, out, options, cancel).map_err(|e| e.to_string())?;
             if options.prepare_only {
-                println!(
+                say_fmt!(
                     "{}: {} points prepared; run them with: ncform sweep {} --resume",
                     outcome.dir.display(),
                     outcome.points,
@@ -103,9 +111,9 @@ fn say_outcome(o: &SweepOutcome) -> ExitStatus {
     let dir = o.dir.display();
     if !o.submitted.is_empty() || o.queued > 0 {
         for (job, n) in &o.submitted {
-            println!("submitted Slurm job {job}: {n} point(s)");
+            say_fmt!("submitted Slurm job {job}: {n} point(s)");
         }
-        println!(
+        say_fmt!(
             "{dir}: {} points, {} complete, {} queued in Slurm earlier, {} submitted now; follow with: ncform sweep {dir} --status",
             o.points,
             o.already_complete,
@@ -115,7 +123,7 @@ fn say_outcome(o: &SweepOutcome) -> ExitStatus {
         return ExitStatus::Complete;
     }
     let b = &o.batch;
-    println!(
+    say_fmt!(
         "{dir}: {} points: {} complete before, {} run now: {} complete, {} failed, {} interrupted",
         o.points,
         o.already_complete,
@@ -175,7 +183,7 @@ pub fn slurm_options(
 pub fn collect_command(dir: &Path) -> Result<ExitStatus, String> {
     let c = study::collect::collect(dir).map_err(|e| e.to_string())?;
     let complete = c.rows.iter().filter(|r| r.status == "complete").count();
-    println!(
+    say_fmt!(
         "{}: {} points ({} complete), {} result columns",
         dir.display(),
         c.rows.len(),
@@ -183,10 +191,10 @@ pub fn collect_command(dir: &Path) -> Result<ExitStatus, String> {
         c.columns.len()
     );
     if let Some(text) = &c.sensitivity {
-        print!("{text}");
+        say(text.trim_end());
     }
     for w in &c.written {
-        println!("wrote {}", w.display());
+        say_fmt!("wrote {}", w.display());
     }
     Ok(ExitStatus::Complete)
 }
