@@ -109,12 +109,15 @@ fn final_force(run: &Path) -> f64 {
     line.split(',').nth(col).unwrap().trim().parse().unwrap()
 }
 
-#[test]
-fn a_killed_sweep_resumes_and_equals_direct_runs() {
+/// Starts the 3 × 2 grid (element size 4 mm, one point at a time) in a
+/// child process and waits until one point is complete and another
+/// running: the temporary folder, the sweep folder, the child, and whether
+/// that moment came.
+fn start_half_way() -> (tempfile::TempDir, PathBuf, std::process::Child, bool) {
     let tmp = tempfile::tempdir().unwrap();
     let sweep = sweep_file(tmp.path(), 4.0, "");
     let dir = tmp.path().join("out");
-    let mut child = Command::new(ncform())
+    let child = Command::new(ncform())
         .args([
             "sweep",
             sweep.to_str().unwrap(),
@@ -129,6 +132,12 @@ fn a_killed_sweep_resumes_and_equals_direct_runs() {
         .spawn()
         .unwrap();
     let half_way = wait_half_way(&dir, Duration::from_secs(120));
+    (tmp, dir, child, half_way)
+}
+
+#[test]
+fn a_killed_sweep_resumes_and_equals_direct_runs() {
+    let (tmp, dir, mut child, half_way) = start_half_way();
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
     assert!(half_way, "no point was complete while another ran");
@@ -246,24 +255,7 @@ fn a_killed_sweep_resumes_and_equals_direct_runs() {
 
 #[test]
 fn a_terminated_sweep_marks_its_point_interrupted_and_resumes() {
-    let tmp = tempfile::tempdir().unwrap();
-    let sweep = sweep_file(tmp.path(), 4.0, "");
-    let dir = tmp.path().join("out");
-    let child = Command::new(ncform())
-        .args([
-            "sweep",
-            sweep.to_str().unwrap(),
-            "--out",
-            dir.to_str().unwrap(),
-            "--jobs",
-            "1",
-            "--quiet",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let half_way = wait_half_way(&dir, Duration::from_secs(120));
+    let (_tmp, dir, child, half_way) = start_half_way();
     // SIGTERM, as a scheduler's time limit sends first.
     // SAFETY: kill(2) on the child's pid.
     unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };

@@ -17,7 +17,6 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
 use ncform::case::Case;
-use ncform::report::{FolderReport, Progress, Report, prepare};
 use ncform::solver::CancelToken;
 
 use ncform::study::keys::CaseDocument;
@@ -368,31 +367,12 @@ fn run_into(
     }
 }
 
-/// What `ncform run` does after reading the case: every set-up check,
-/// then the estimate, then the solve into a [`FolderReport`].
+/// What `ncform run` does after reading the case
+/// ([`ncform::cli::run::run_into_folder`]).
 fn solve_into(spec: &Case, out: &Path, quiet: bool, cancel: &CancelToken) -> Result<(), String> {
-    let mut progress = match (spec, quiet) {
-        (_, true) => Progress::Quiet,
-        (Case::Oat(c), false) => Progress::auto(c.displacement),
-        (Case::Forming(_), false) => Progress::auto_programme(),
-    };
-    let mut report = FolderReport::new(out);
-    let prepared = prepare(spec)
-        .inspect_err(|e| report.fail(e))
-        .map_err(|e| e.to_string())?;
-    let estimate = prepared.estimate();
-    if !quiet {
-        for line in estimate.lines() {
-            eprintln!("{line}");
-        }
-    }
-    if let Some(warning) = estimate.output_warning() {
-        eprintln!("warning: {warning}");
-    }
-    prepared
-        .solve(&mut report, &mut progress, cancel)
-        .map_err(|e| e.to_string())?;
-    Ok(())
+    ncform::cli::run::run_into_folder(spec, out, quiet, cancel)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 /// The columns of a CSV file that ncform writes (`#` comment lines, one

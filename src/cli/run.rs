@@ -54,25 +54,7 @@ pub fn run_command(
         eprintln!("warning: {w}");
     }
     let out = out.unwrap_or_else(|| default_out_dir(case));
-    let mut progress = match (&spec, quiet) {
-        (_, true) => Progress::Quiet,
-        (Case::Oat(c), false) => Progress::auto(c.displacement),
-        (Case::Forming(_), false) => Progress::auto_programme(),
-    };
-    let mut report = FolderReport::new(&out);
-    // Every set-up check before the folder is touched; then the estimate.
-    let prepared = prepare(&spec).inspect_err(|e| report.fail(e))?;
-    let estimate = prepared.estimate();
-    if !quiet {
-        for line in estimate.lines() {
-            eprintln!("{line}");
-        }
-    }
-    if let Some(warning) = estimate.output_warning() {
-        eprintln!("warning: {warning}");
-    }
-    prepared.solve(&mut report, &mut progress, cancel)?;
-    let Some(summary) = report.into_summary() else {
+    let Some(summary) = run_into_folder(&spec, &out, quiet, cancel)? else {
         return Ok(ExitStatus::BadInput);
     };
     let (work, forces, wall_seconds, status, exit_status) = match &summary {
@@ -89,6 +71,41 @@ pub fn run_command(
     };
     say_exit(&status, exit_status, loads.0, loads.1);
     Ok(exit_status)
+}
+
+/// What `ncform run` does with a case read: every set-up check before the
+/// folder `out` is touched, the estimate on stderr (not when `quiet`; the
+/// warning when the outputs would dwarf the solve always), then the solve
+/// into a run folder with progress unless `quiet`. Returns the folder's
+/// summary (`None` when the run ended without one).
+///
+/// # Errors
+/// A set-up error (the folder's `status.json` records it).
+pub fn run_into_folder(
+    spec: &Case,
+    out: &Path,
+    quiet: bool,
+    cancel: &CancelToken,
+) -> Result<Option<FolderSummary>, RunError> {
+    let mut progress = match (spec, quiet) {
+        (_, true) => Progress::Quiet,
+        (Case::Oat(c), false) => Progress::auto(c.displacement),
+        (Case::Forming(_), false) => Progress::auto_programme(),
+    };
+    let mut report = FolderReport::new(out);
+    // Every set-up check before the folder is touched; then the estimate.
+    let prepared = prepare(spec).inspect_err(|e| report.fail(e))?;
+    let estimate = prepared.estimate();
+    if !quiet {
+        for line in estimate.lines() {
+            eprintln!("{line}");
+        }
+    }
+    if let Some(warning) = estimate.output_warning() {
+        eprintln!("warning: {warning}");
+    }
+    prepared.solve(&mut report, &mut progress, cancel)?;
+    Ok(report.into_summary())
 }
 
 /// An OAT's work line, its forces at the reported displacements, the wall

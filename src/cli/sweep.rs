@@ -78,7 +78,10 @@ pub fn sweep_command(
             let batch = study::run_listed(dir, points, cancel).map_err(|e| e.to_string())?;
             say_fmt!(
                 "points {:?}: {} complete, {} failed, {} interrupted",
-                points, batch.complete, batch.failed, batch.interrupted
+                points,
+                batch.complete,
+                batch.failed,
+                batch.interrupted
             );
             return Ok(batch_exit(&batch));
         }

@@ -224,15 +224,7 @@ pub fn plan(
             let d = spec.vary.len();
             let u = design::saltelli(n, d, spec.seed).map_err(|e| design_err(e.to_string()))?;
             sensitivity = Some(SensitivityDesign::Sobol { n, d });
-            u.iter()
-                .map(|row| {
-                    spec.vary
-                        .iter()
-                        .enumerate()
-                        .map(|(f, factor)| marginal_value(&factor.levels, row[f]))
-                        .collect()
-                })
-                .collect()
+            unit_rows_to_values(spec, &u)
         }
         DesignKind::Morris => {
             let r = spec.count.unwrap_or(1);
@@ -254,16 +246,7 @@ pub fn plan(
                     })
                     .collect(),
             });
-            m.points
-                .iter()
-                .map(|row| {
-                    spec.vary
-                        .iter()
-                        .enumerate()
-                        .map(|(f, factor)| marginal_value(&factor.levels, row[f]))
-                        .collect()
-                })
-                .collect()
+            unit_rows_to_values(spec, &m.points)
         }
     };
     if rows.len() > spec.max_points {
@@ -319,6 +302,20 @@ fn as_number(v: &toml::Value) -> Option<f64> {
         toml::Value::Integer(i) => Some(*i as f64),
         _ => None,
     }
+}
+
+/// The values of the `[[vary]]` factors at each row of unit-cube
+/// coordinates.
+fn unit_rows_to_values(spec: &SweepSpec, rows: &[Vec<f64>]) -> Vec<Vec<toml::Value>> {
+    rows.iter()
+        .map(|row| {
+            spec.vary
+                .iter()
+                .zip(row)
+                .map(|(factor, &u)| marginal_value(&factor.levels, u))
+                .collect()
+        })
+        .collect()
 }
 
 /// The value of a unit-cube coordinate `u` of a factor.
