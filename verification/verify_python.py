@@ -2,10 +2,12 @@
 """The Python module `ncform` (python/, pyproject.toml): built, installed and
 tested against the command line.
 
-1. A virtual environment of its own, verification/.venv-python (made once,
-   git-ignored), gets the pinned packages of verification/requirements.txt
-   that the module and its tests need (PYTHON_PACKAGES below: numpy,
-   meshio, maturin, pytest, dask[distributed] and their dependencies).
+1. The verification suite's pinned environment (verification/.venv, when
+   run from it as verification/run.sh does; standalone, a venv of its own,
+   verification/.venv-python, made once, git-ignored) with the pinned
+   packages of verification/requirements.txt that the module and its tests
+   need (PYTHON_PACKAGES below: numpy, meshio, maturin, pytest,
+   dask[distributed] and their dependencies).
 2. `pip install --no-build-isolation <repo>` builds the abi3 wheel with the
    pinned maturin and installs it, with CARGO_TARGET_DIR=<repo>/target so
    that the dependencies compiled for the release binary are reused where
@@ -58,8 +60,14 @@ def pinned_lines():
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--ncform", default="", help="the ncform binary the tests compare with")
-    parser.add_argument("--venv", type=Path, default=HERE / ".venv-python")
+    parser.add_argument("--venv", type=Path, default=None,
+                        help="the environment to install into (default: the suite's own, "
+                             "verification/.venv, when run from it as run.sh does; else "
+                             "verification/.venv-python)")
     args = parser.parse_args()
+    if args.venv is None:
+        in_venv = sys.prefix != getattr(sys, "base_prefix", sys.prefix)
+        args.venv = Path(sys.prefix) if in_venv else HERE / ".venv-python"
     passed = failed = 0
 
     def check(ok, what, detail=""):
