@@ -12,6 +12,11 @@ fn ncform() -> &'static str {
     env!("CARGO_BIN_EXE_ncform")
 }
 
+/// `ncform ARGS…`, run to its end: exit status, stdout, stderr.
+fn ncform_with(args: &[&str]) -> std::process::Output {
+    Command::new(ncform()).args(args).output().unwrap()
+}
+
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -147,24 +152,18 @@ fn a_killed_sweep_resumes_and_equals_direct_runs() {
         .collect();
     assert_eq!(killed.len(), 1, "one point was running when killed");
     // The status names the killed point as running-but-not-running.
-    let out = Command::new(ncform())
-        .args(["sweep", dir.to_str().unwrap(), "--status"])
-        .output()
-        .unwrap();
+    let out = ncform_with(&["sweep", dir.to_str().unwrap(), "--status"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("killed"), "{text}");
 
-    let out = Command::new(ncform())
-        .args([
-            "sweep",
-            dir.to_str().unwrap(),
-            "--resume",
-            "--jobs",
-            "1",
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
+    let out = ncform_with(&[
+        "sweep",
+        dir.to_str().unwrap(),
+        "--resume",
+        "--jobs",
+        "1",
+        "--quiet",
+    ]);
     assert!(
         out.status.success(),
         "{}",
@@ -193,16 +192,10 @@ fn a_killed_sweep_resumes_and_equals_direct_runs() {
         assert!(run_status.contains("\"complete\""), "{run_status}");
     }
     // A second resume runs nothing.
-    let out = Command::new(ncform())
-        .args(["sweep", dir.to_str().unwrap(), "--resume", "--quiet"])
-        .output()
-        .unwrap();
+    let out = ncform_with(&["sweep", dir.to_str().unwrap(), "--resume", "--quiet"]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("6 complete before, 0 run now"));
 
-    let out = Command::new(ncform())
-        .args(["collect", dir.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let out = ncform_with(&["collect", dir.to_str().unwrap()]);
     assert!(
         out.status.success(),
         "{}",
@@ -272,10 +265,7 @@ fn a_terminated_sweep_marks_its_point_interrupted_and_resumes() {
             "points after the interrupt are not started: {states:?}"
         );
     }
-    let out = Command::new(ncform())
-        .args(["sweep", dir.to_str().unwrap(), "--resume", "--quiet"])
-        .output()
-        .unwrap();
+    let out = ncform_with(&["sweep", dir.to_str().unwrap(), "--resume", "--quiet"]);
     assert!(
         out.status.success(),
         "{}",
@@ -313,15 +303,12 @@ fn bad_keys_and_values_are_refused_before_anything_runs() {
         std::fs::create_dir_all(&sub).unwrap();
         let sweep = sweep_file(&sub, 10.0, extra);
         let dir = sub.join("out");
-        let out = Command::new(ncform())
-            .args([
-                "sweep",
-                sweep.to_str().unwrap(),
-                "--out",
-                dir.to_str().unwrap(),
-            ])
-            .output()
-            .unwrap();
+        let out = ncform_with(&[
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{err}");
         assert!(err.contains(named), "case {i}: {err}");
@@ -360,16 +347,13 @@ fn prepare(tmp: &Path, name: &str, body: &str) -> PathBuf {
     )
     .unwrap();
     let dir = tmp.join(name);
-    let out = Command::new(ncform())
-        .args([
-            "sweep",
-            sweep.to_str().unwrap(),
-            "--out",
-            dir.to_str().unwrap(),
-            "--prepare-only",
-        ])
-        .output()
-        .unwrap();
+    let out = ncform_with(&[
+        "sweep",
+        sweep.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--prepare-only",
+    ]);
     assert!(
         out.status.success(),
         "{name}: {}",

@@ -347,8 +347,9 @@ pub struct RunFolder {
     held: PathBuf,
 }
 
-/// The current time in RFC 3339 (UTC, seconds).
-fn now() -> String {
+/// The current time in RFC 3339 (UTC, seconds): the times of the run
+/// folder's and a sweep's status files.
+pub fn now() -> String {
     humantime::format_rfc3339_seconds(SystemTime::now()).to_string()
 }
 

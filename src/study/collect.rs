@@ -479,19 +479,13 @@ fn results_csv(manifest: &Manifest, c: &Collected, notes: &[String]) -> String {
     out
 }
 
-/// A column name made safe for a file name.
+/// A column name made safe for a file name: the run files' stem
+/// ([`crate::report::forming::file_stem`]) without leading, trailing or
+/// doubled underscores (`force_final [N]` → `force_final_N`).
 pub fn file_stem(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    s.trim_matches('_').replace("__", "_")
+    crate::report::forming::file_stem(name)
+        .trim_matches('_')
+        .replace("__", "_")
 }
 
 /// Colours: feasible (or unconstrained) points, infeasible points.

@@ -19,7 +19,6 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::SystemTime;
 
 use serde::{Deserialize, Serialize};
 
@@ -334,11 +333,6 @@ pub fn record_submission(dir: &Path, s: &Submission) -> Result<(), SlurmError> {
     fs::rename(&tmp, &path).map_err(|source| SlurmError::Io { path, source })
 }
 
-/// Now, RFC 3339 UTC to the second (the `submitted` of a [`Submission`]).
-pub fn now_rfc3339() -> String {
-    humantime::format_rfc3339_seconds(SystemTime::now()).to_string()
-}
-
 /// Plans, writes and submits `points` of sweep folder `dir` as job arrays
 /// and records each submission: [`max_array_size`], [`plan`], then per array
 /// [`write_array_script`], [`submit`] and [`record_submission`]. The arrays
@@ -372,7 +366,7 @@ pub fn submit_points(
             job_id,
             array: k,
             tasks: array.tasks,
-            submitted: now_rfc3339(),
+            submitted: crate::report::folder::now(),
         };
         record_submission(dir, &s)?;
         done.push(s);
@@ -898,7 +892,7 @@ mod tests {
             job_id: 11,
             array: 0,
             tasks: vec![vec![0], vec![1]],
-            submitted: now_rfc3339(),
+            submitted: crate::report::folder::now(),
         };
         let b = Submission {
             job_id: 12,

@@ -16,12 +16,15 @@
 //! so a rerun never mixes with the outputs of a killed attempt.
 
 use std::collections::BTreeMap;
-use std::io::Read as _;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+
+use crate::report::provenance::sha256_hex;
+
+pub use crate::report::folder::now;
 
 use super::design;
 use super::keys::{CaseDocument, KeyError};
@@ -415,29 +418,9 @@ impl Manifest {
     }
 }
 
-/// SHA-256 of `bytes`, in hex.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let digest = Sha256::digest(bytes);
-    digest.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// SHA-256 of a file, in hex.
+/// SHA-256 of a file's bytes, in hex.
 fn file_sha256(path: &Path) -> std::io::Result<String> {
-    let mut f = std::fs::File::open(path)?;
-    let mut hasher = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = f.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        hasher.update(&buf[..n]);
-    }
-    Ok(hasher
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
+    std::fs::read(path).map(|bytes| sha256_hex(&bytes))
 }
 
 /// The running binary and its SHA-256 (computed once).
@@ -602,11 +585,6 @@ fn absolute(p: &Path) -> String {
         .unwrap_or_else(|_| p.to_path_buf())
         .display()
         .to_string()
-}
-
-/// The time now, UTC, RFC 3339 to the second.
-pub fn now() -> String {
-    humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()
 }
 
 /// Where a point is.
